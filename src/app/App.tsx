@@ -1,0 +1,131 @@
+import { useEffect, useState } from 'react';
+import { useStore } from 'zustand';
+import { controllers } from '../controllers';
+import { authStore } from '../fleet/auth';
+import { fleetStore } from '../fleet/fleet';
+import { EmptyState, Notice } from '../ui';
+import { AlarmBanner } from './AlarmBanner';
+import { AuditPage } from './audit/AuditPage';
+import { LoginPage } from './auth/LoginPage';
+import { UserMenu } from './UserMenu';
+import { demoState } from './boot';
+import { ErrorBoundary } from './ErrorBoundary';
+import { FleetPage } from './FleetPage';
+import { MachinePage } from './MachinePage';
+import { Link, matchRoute, useLocation } from './router';
+
+type ThemeChoice = 'system' | 'light' | 'dark';
+
+function useTheme(): [ThemeChoice, (t: ThemeChoice) => void] {
+  const [theme, setTheme] = useState<ThemeChoice>(() => {
+    const t = localStorage.getItem('shopdeck.theme');
+    return t === 'light' || t === 'dark' ? t : 'system';
+  });
+  useEffect(() => {
+    if (theme === 'system') document.documentElement.removeAttribute('data-theme');
+    else document.documentElement.setAttribute('data-theme', theme);
+    localStorage.setItem('shopdeck.theme', theme);
+  }, [theme]);
+  return [theme, setTheme];
+}
+
+export function App() {
+  const { pathname } = useLocation();
+  const route = matchRoute(pathname);
+  const [theme, setTheme] = useTheme();
+  const mode = useStore(authStore, (s) => s.mode);
+  const user = useStore(authStore, (s) => s.user);
+  const machines = useStore(fleetStore, (s) => s.machines);
+  const anySimulated = machines.some((m) => m.simulated);
+  const familyPages = Object.values(controllers).flatMap((m) =>
+    (m?.pages ?? []).map((p) => ({ kind: m.kind, ...p })),
+  );
+
+  let body: React.ReactNode;
+  switch (route.name) {
+    case 'fleet':
+      body = <FleetPage />;
+      break;
+    case 'machine':
+      body = <MachinePage id={route.id} tab={route.tab} />;
+      break;
+    case 'audit':
+      body = <AuditPage />;
+      break;
+    case 'login':
+      body = <LoginPage />;
+      break;
+    case 'family-page': {
+      const page = familyPages.find((p) => p.kind === route.kind && p.path === route.page);
+      body = page ? <page.Component /> : <EmptyState>There is no page here.</EmptyState>;
+      break;
+    }
+    default:
+      body = (
+        <EmptyState>
+          There is no page here. <Link to="/">Back to the fleet</Link>
+        </EmptyState>
+      );
+  }
+
+  return (
+    <div className="app">
+      <header className="topbar">
+        <Link to="/" className="brand" aria-label="Shopdeck fleet">
+          <img src="/favicon.svg" alt="" width={26} height={26} />
+          Shopdeck
+        </Link>
+        <nav className="topnav" aria-label="Main">
+          <Link to="/" className={route.name === 'fleet' ? 'active' : ''}>
+            Fleet
+          </Link>
+          <Link to="/audit" className={route.name === 'audit' ? 'active' : ''}>
+            Audit
+          </Link>
+          {familyPages.map((p) => (
+            <Link key={`${p.kind}/${p.path}`} to={`/${p.kind}/${p.path}`}>
+              {p.label}
+            </Link>
+          ))}
+        </nav>
+        <div className="topbar-right">
+          <label className="theme-pick">
+            <span className="sr-only">Theme</span>
+            <select
+              className="ui-input"
+              value={theme}
+              onChange={(e) => setTheme(e.target.value as ThemeChoice)}
+              aria-label="Theme"
+            >
+              <option value="system">Theme: system</option>
+              <option value="light">Theme: light</option>
+              <option value="dark">Theme: dark</option>
+            </select>
+          </label>
+          <UserMenu />
+        </div>
+      </header>
+      {mode === 'open' && (
+        <div className="open-banner" role="note" data-testid="open-mode-banner">
+          Open mode: anyone on this network can control these machines. Add users to require a login (see the
+          README).
+        </div>
+      )}
+      {anySimulated && demoState.mode === 'none' && demoState.error && (
+        <Notice tone="bad" title="The simulators could not start in this browser">
+          {demoState.error}
+        </Notice>
+      )}
+      {mode === 'secured' && !user && route.name !== 'login' ? (
+        <main className="main">
+          <LoginPage />
+        </main>
+      ) : (
+        <main className="main">
+          <ErrorBoundary label="Page">{body}</ErrorBoundary>
+        </main>
+      )}
+      <AlarmBanner />
+    </div>
+  );
+}

@@ -1,0 +1,205 @@
+import { useStore } from 'zustand';
+import { controllers } from '../controllers';
+import { getRuntime, fleetStore, type MachineRuntime } from '../fleet/fleet';
+import { linkWords } from '../fleet/contract';
+import { useNow, useSnapshot } from '../fleet/react';
+import { mostSevereAlarm, type Activity, type MachineInfo } from '../fleet/types';
+import { Badge, EmptyState, Notice, ProgressBar, formatAge, formatDuration, formatPercent } from '../ui';
+import { ErrorBoundary } from './ErrorBoundary';
+import { Link, navigate } from './router';
+import { ACTIVITY_TONE, ACTIVITY_WORDS, LINK_TONE, STALE_MS } from './status';
+import { useEffect, useState } from 'react';
+
+export function FleetPage() {
+  const { machines, status, error } = useStore(fleetStore);
+  if (status === 'loading') return <EmptyState>Loading the fleet…</EmptyState>;
+  if (status === 'error')
+    return (
+      <Notice tone="bad" title="The fleet could not be loaded">
+        {error}
+      </Notice>
+    );
+  if (machines.length === 0)
+    return (
+      <EmptyState>
+        No machines. Add them to <code>machines.json</code> (see the README), or sign in to see yours.
+      </EmptyState>
+    );
+  return (
+    <div className="fleet">
+      <SummaryBar machines={machines} />
+      <div className="tiles" data-testid="fleet-tiles">
+        {machines.map((m) => (
+          <ErrorBoundary key={m.id} label={m.name} compact>
+            <MachineTile info={m} />
+          </ErrorBoundary>
+        ))}
+      </div>
+    </div>
+  );
+}
+
+const SUMMARY: Array<{
+  key: string;
+  label: string;
+  match: (a: Activity, alarm: boolean) => boolean;
+  tone: 'ok' | 'info' | 'paused' | 'bad' | 'muted';
+}> = [
+  { key: 'running', label: 'running', match: (a) => a === 'running', tone: 'ok' },
+  { key: 'idle', label: 'idle', match: (a) => a === 'idle', tone: 'info' },
+  { key: 'paused', label: 'paused', match: (a) => a === 'paused', tone: 'paused' },
+  {
+    key: 'alarm',
+    label: 'in alarm',
+    match: (a, alarm) => a === 'alarm' || a === 'error' || alarm,
+    tone: 'bad',
+  },
+  { key: 'offline', label: 'offline', match: (a) => a === 'offline', tone: 'muted' },
+];
+
+/** Counts by activity. Subscribes to each machine's snapshot for two fields only. */
+function SummaryBar({ machines }: { machines: MachineInfo[] }) {
+  const [counts, setCounts] = useState<Record<string, number>>({});
+  useEffect(() => {
+    const rts = machines.map((m) => getRuntime(m.id)).filter((r): r is MachineRuntime => Boolean(r));
+    const compute = () => {
+      const c: Record<string, number> = {};
+      for (const rt of rts) {
+        const s = rt.snapshot.getState();
+        const alarm = s.alarms.some((a) => a.severity === 'critical' && !a.acknowledged);
+        for (const def of SUMMARY) if (def.match(s.activity, alarm)) c[def.key] = (c[def.key] ?? 0) + 1;
+      }
+      setCounts((prev) => (SUMMARY.every((d) => prev[d.key] === c[d.key]) ? prev : c));
+    };
+    compute();
+    const unsubs = rts.map((rt) => rt.snapshot.subscribe(compute));
+    return () => unsubs.forEach((u) => u());
+  }, [machines]);
+  return (
+    <div className="summary" data-testid="fleet-summary" aria-label="Fleet summary">
+      <span className="summary-total">{machines.length} machines</span>
+      {SUMMARY.map((d) => (
+        <Badge key={d.key} tone={(counts[d.key] ?? 0) > 0 ? d.tone : 'muted'} testId={`summary-${d.key}`}>
+          {counts[d.key] ?? 0} {d.label}
+        </Badge>
+      ))}
+    </div>
+  );
+}
+
+function Age({ at }: { at: number | null }) {
+  const now = useNow(1000);
+  const stale = at === null || now - at > STALE_MS;
+  return (
+    <span className={stale ? 'age stale' : 'age'} data-testid="data-age" data-stale={stale}>
+      {at === null
+        ? 'no data yet'
+        : stale
+          ? `stale · ${formatAge(at, now)}`
+          : `updated ${formatAge(at, now)}`}
+    </span>
+  );
+}
+
+export function MachineTile({ info }: { info: MachineInfo }) {
+  const rt = getRuntime(info.id);
+  if (!rt) return null;
+  return <TileBody info={info} rt={rt} />;
+}
+
+function TileBody({ info, rt }: { info: MachineInfo; rt: MachineRuntime }) {
+  const s = useSnapshot(rt, (x) => ({
+    link: x.link,
+    activity: x.activity,
+    activityLabel: x.activityLabel,
+    job: x.job,
+    alarms: x.alarms,
+    updatedAt: x.updatedAt,
+    problem: x.problem,
+  }));
+  const mod = controllers[info.kind];
+  const alarm = mostSevereAlarm(s.alarms.filter((a) => !a.acknowledged));
+  const Extra = mod?.TileExtra;
+  const open = () => navigate(`/m/${encodeURIComponent(info.id)}`);
+  return (
+    <article
+      className={`tile activity-${s.activity}${alarm?.severity === 'critical' ? ' has-critical' : ''}`}
+      data-testid={`tile-${info.id}`}
+      data-activity={s.activity}
+      onClick={open}
+      role="link"
+      tabIndex={0}
+      onKeyDown={(e) => (e.key === 'Enter' || e.key === ' ') && open()}
+      aria-label={`${info.name}: ${ACTIVITY_WORDS[s.activity]}`}
+    >
+      <header>
+        <div>
+          <h3>
+            <Link to={`/m/${encodeURIComponent(info.id)}`} onClick={(e) => e.stopPropagation()}>
+              {info.name}
+            </Link>
+          </h3>
+          <div className="ui-muted small">
+            {mod?.label ?? info.kind}
+            {info.simulated && (
+              <Badge tone="warn" plain title="This machine is simulated: nothing real moves">
+                simulated
+              </Badge>
+            )}
+          </div>
+        </div>
+        <Badge tone={ACTIVITY_TONE[s.activity]} testId="tile-activity">
+          {ACTIVITY_WORDS[s.activity]}
+        </Badge>
+      </header>
+      <div className="tile-label" data-testid="tile-label">
+        {s.activityLabel}
+      </div>
+      {s.job ? (
+        <div className="tile-job">
+          <div className="tile-job-name" title={s.job.name ?? undefined}>
+            {s.job.name ?? 'Job'}
+          </div>
+          <ProgressBar value={s.job.progress} label={`${info.name} job progress`} />
+          <div className="ui-row small ui-muted tile-job-times">
+            <span>{formatPercent(s.job.progress)}</span>
+            <span>
+              {s.job.remaining !== null
+                ? `${formatDuration(s.job.remaining)} left`
+                : s.job.elapsed !== null
+                  ? `${formatDuration(s.job.elapsed)} elapsed`
+                  : ''}
+            </span>
+          </div>
+        </div>
+      ) : (
+        <div className="tile-job ui-muted small">No job</div>
+      )}
+      {alarm && (
+        <div
+          className={`tile-alarm tone-${alarm.severity === 'critical' ? 'bad' : alarm.severity === 'warning' ? 'warn' : 'info'}`}
+          data-testid="tile-alarm"
+        >
+          {alarm.severity === 'critical' ? '⚠ ' : ''}
+          {alarm.message}
+        </div>
+      )}
+      {Extra && rt.session && (
+        <div className="tile-extra" onClick={(e) => e.stopPropagation()}>
+          <Extra session={rt.session} />
+        </div>
+      )}
+      <footer className="ui-row small">
+        <Badge tone={LINK_TONE[s.link]} testId="tile-link" title={s.problem?.message}>
+          {linkWords(s.link)}
+        </Badge>
+        <Age at={s.updatedAt} />
+      </footer>
+      {s.problem && s.link !== 'online' && (
+        <div className="tile-problem small" title={s.problem.message}>
+          {s.problem.message}
+        </div>
+      )}
+    </article>
+  );
+}

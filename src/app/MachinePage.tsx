@@ -1,0 +1,223 @@
+import { useState, type ComponentType } from 'react';
+import { useStore } from 'zustand';
+import { controllers } from '../controllers';
+import { linkWords, type TabProps, type MachineSession } from '../fleet/contract';
+import { fleetStore, getRuntime, type MachineRuntime } from '../fleet/fleet';
+import { LogView, useNow, useRole, useSnapshot } from '../fleet/react';
+import { roleAtLeast } from '../fleet/types';
+import { Badge, Button, EmptyState, Notice, Panel, formatAge, formatDateTime } from '../ui';
+import { simulatorFor } from './demo';
+import { ErrorBoundary } from './ErrorBoundary';
+import { Link, navigate } from './router';
+import { ACTIVITY_TONE, ACTIVITY_WORDS, LINK_TONE, STALE_MS } from './status';
+import type { Faults } from '../fleet/sim';
+
+interface PageTab {
+  id: string;
+  label: string;
+  render: () => React.ReactNode;
+}
+
+export function MachinePage({ id, tab }: { id: string; tab: string | null }) {
+  const status = useStore(fleetStore, (s) => s.status);
+  const rt = getRuntime(id);
+  if (!rt) {
+    if (status === 'loading') return <EmptyState>Loading…</EmptyState>;
+    return (
+      <Notice tone="warn" title="No such machine">
+        There is no machine “{id}” in this console. <Link to="/">Back to the fleet</Link>
+      </Notice>
+    );
+  }
+  return (
+    <ErrorBoundary label={rt.info.name}>
+      <MachinePageBody rt={rt} tab={tab} />
+    </ErrorBoundary>
+  );
+}
+
+function MachinePageBody({ rt, tab }: { rt: MachineRuntime; tab: string | null }) {
+  const info = rt.info;
+  const mod = controllers[info.kind];
+  const role = useRole();
+  const s = useSnapshot(rt, (x) => ({
+    link: x.link,
+    activity: x.activity,
+    activityLabel: x.activityLabel,
+    updatedAt: x.updatedAt,
+    problem: x.problem,
+    identity: x.identity,
+    retryAt: x.retryAt,
+  }));
+  const now = useNow(1000);
+  const session = rt.session;
+  const tabs: PageTab[] = [];
+  if (mod && session) {
+    for (const t of mod.tabs) {
+      if (t.role && !roleAtLeast(role, t.role)) continue;
+      const C = t.Component as ComponentType<TabProps<MachineSession>>;
+      tabs.push({ id: t.id, label: t.label, render: () => <C session={session} /> });
+    }
+  }
+  tabs.push({ id: 'log', label: 'Log', render: () => <LogView log={rt.log} /> });
+  if (info.simulated)
+    tabs.push({ id: 'simulator', label: 'Simulator', render: () => <SimulatorPanel id={info.id} /> });
+  const current = tabs.find((t) => t.id === tab) ?? tabs[0];
+  const LoginForm = mod?.LoginForm as ComponentType<TabProps<MachineSession>> | undefined;
+  const stale = s.updatedAt === null || now - s.updatedAt > STALE_MS;
+
+  return (
+    <div className="machine-page" data-testid={`machine-${info.id}`}>
+      <div className="machine-head">
+        <div>
+          <div className="crumbs ui-muted small">
+            <Link to="/">Fleet</Link> / {mod?.label ?? info.kind}
+          </div>
+          <h1>{info.name}</h1>
+          <div className="ui-muted small">{s.identity ?? info.id}</div>
+        </div>
+        <div className="machine-state">
+          <Badge tone={ACTIVITY_TONE[s.activity]} testId="machine-activity">
+            {ACTIVITY_WORDS[s.activity]}
+          </Badge>
+          <div className="machine-label" data-testid="machine-label">
+            {s.activityLabel}
+          </div>
+          <div className="ui-row small">
+            <Badge tone={LINK_TONE[s.link]} testId="machine-link">
+              {linkWords(s.link)}
+            </Badge>
+            <span className={stale ? 'age stale' : 'age'} title={formatDateTime(s.updatedAt)}>
+              {s.updatedAt === null
+                ? 'no data yet'
+                : `${stale ? 'stale · ' : ''}updated ${formatAge(s.updatedAt, now)}`}
+            </span>
+          </div>
+        </div>
+      </div>
+      {info.simulated && (
+        <div className="sim-banner" role="note" data-testid="simulated-banner">
+          Simulated machine: everything on this page comes from a simulator running in this browser. Nothing
+          real moves.
+        </div>
+      )}
+      {s.problem && s.link !== 'online' && (
+        <Notice
+          tone={s.link === 'protocol-error' ? 'bad' : 'warn'}
+          title={`${linkWords(s.link)}${s.problem.path ? ` (at ${s.problem.path})` : ''}`}
+          testId="link-problem"
+        >
+          {s.problem.message}
+          {s.retryAt && s.retryAt > now ? ` — next try in ${Math.ceil((s.retryAt - now) / 1000)} s.` : ''}
+        </Notice>
+      )}
+      {s.link === 'needs-login' && LoginForm && session && (
+        <Panel title="Log in to this machine">
+          <LoginForm session={session} />
+        </Panel>
+      )}
+      {rt.error && (
+        <Notice tone="bad" title="This machine cannot be shown">
+          {rt.error}
+        </Notice>
+      )}
+      <nav className="tabs" role="tablist" aria-label="Machine sections">
+        {tabs.map((t) => (
+          <button
+            key={t.id}
+            role="tab"
+            type="button"
+            aria-selected={t.id === current?.id}
+            className={t.id === current?.id ? 'tab active' : 'tab'}
+            onClick={() => navigate(`/m/${encodeURIComponent(info.id)}/${t.id}`, true)}
+            data-testid={`tab-${t.id}`}
+          >
+            {t.label}
+          </button>
+        ))}
+      </nav>
+      <div className="tab-body" role="tabpanel">
+        {current && (
+          <ErrorBoundary key={current.id} label={`${info.name} · ${current.label}`}>
+            {current.render()}
+          </ErrorBoundary>
+        )}
+      </div>
+    </div>
+  );
+}
+
+/** Developer panel of a simulated machine: fault injection and stand-ins for the physical world. */
+function SimulatorPanel({ id }: { id: string }) {
+  const sim = simulatorFor(id);
+  const [faults, setFaults] = useState<Faults | null>(sim ? { ...sim.faults } : null);
+  if (!sim || !faults) return <EmptyState>This simulator is not running in this page.</EmptyState>;
+  const update = (f: Partial<Faults>) => {
+    sim.setFaults(f);
+    setFaults({ ...sim.faults });
+  };
+  const controls = sim.controls();
+  return (
+    <div className="ui-grid">
+      <Panel title="Physical world (simulated)">
+        {controls.length === 0 && <EmptyState>No controls for this simulator.</EmptyState>}
+        <div className="ui-row">
+          {controls.map((c) => (
+            <Button key={c.id} onClick={() => c.run()} data-testid={`sim-control-${c.id}`}>
+              {c.label}
+            </Button>
+          ))}
+        </div>
+      </Panel>
+      <Panel title="Fault injection">
+        <div className="ui-row">
+          <label className="check">
+            <input
+              type="checkbox"
+              checked={faults.drop}
+              onChange={(e) => update({ drop: e.target.checked })}
+              data-testid="fault-drop"
+            />{' '}
+            Drop connections
+          </label>
+          <label className="check">
+            <input
+              type="checkbox"
+              checked={faults.http5xx}
+              onChange={(e) => update({ http5xx: e.target.checked })}
+              data-testid="fault-5xx"
+            />{' '}
+            Answer 503
+          </label>
+          <label className="check">
+            <input
+              type="checkbox"
+              checked={faults.malformed}
+              onChange={(e) => update({ malformed: e.target.checked })}
+              data-testid="fault-malformed"
+            />{' '}
+            Malformed bodies
+          </label>
+          <label className="check">
+            Latency{' '}
+            <select
+              className="ui-input"
+              value={faults.latencyMs}
+              onChange={(e) => update({ latencyMs: Number(e.target.value) })}
+              data-testid="fault-latency"
+            >
+              {[0, 200, 1000, 3000, 10000].map((v) => (
+                <option key={v} value={v}>
+                  {v} ms
+                </option>
+              ))}
+            </select>
+          </label>
+          <Button onClick={() => sim.closeSockets()} data-testid="fault-close-sockets">
+            Close sockets
+          </Button>
+        </div>
+      </Panel>
+    </div>
+  );
+}

@@ -1,0 +1,68 @@
+import { useSyncExternalStore, type AnchorHTMLAttributes, type MouseEvent } from 'react';
+
+/** A tiny history router: the console has a handful of routes and bookmarkable machine pages. */
+const listeners = new Set<() => void>();
+
+function notify(): void {
+  for (const l of listeners) l();
+}
+
+if (typeof window !== 'undefined') window.addEventListener('popstate', notify);
+
+export function navigate(to: string, replace = false): void {
+  if (to === location.pathname + location.search) return;
+  if (replace) history.replaceState(null, '', to);
+  else history.pushState(null, '', to);
+  window.scrollTo(0, 0);
+  notify();
+}
+
+function subscribe(fn: () => void): () => void {
+  listeners.add(fn);
+  return () => listeners.delete(fn);
+}
+
+export function useLocation(): { pathname: string; search: string } {
+  const href = useSyncExternalStore(
+    subscribe,
+    () => location.pathname + location.search,
+    () => '/',
+  );
+  const u = new URL(href, 'http://x');
+  return { pathname: u.pathname, search: u.search };
+}
+
+export function Link(props: AnchorHTMLAttributes<HTMLAnchorElement> & { to: string }) {
+  const { to, onClick, ...rest } = props;
+  return (
+    <a
+      {...rest}
+      href={to}
+      onClick={(e: MouseEvent<HTMLAnchorElement>) => {
+        onClick?.(e);
+        if (e.defaultPrevented || e.button !== 0 || e.metaKey || e.ctrlKey || e.shiftKey || e.altKey) return;
+        e.preventDefault();
+        navigate(to);
+      }}
+    />
+  );
+}
+
+export type Route =
+  | { name: 'fleet' }
+  | { name: 'machine'; id: string; tab: string | null }
+  | { name: 'audit' }
+  | { name: 'login' }
+  | { name: 'family-page'; kind: string; page: string }
+  | { name: 'not-found' };
+
+export function matchRoute(pathname: string): Route {
+  const parts = pathname.split('/').filter(Boolean).map(decodeURIComponent);
+  if (parts.length === 0) return { name: 'fleet' };
+  if (parts[0] === 'm' && parts[1]) return { name: 'machine', id: parts[1], tab: parts[2] ?? null };
+  if (parts[0] === 'audit' && parts.length === 1) return { name: 'audit' };
+  if (parts[0] === 'login' && parts.length === 1) return { name: 'login' };
+  if (parts.length === 2 && parts[0] && parts[1])
+    return { name: 'family-page', kind: parts[0], page: parts[1] };
+  return { name: 'not-found' };
+}

@@ -1,0 +1,185 @@
+import type { ComponentType } from 'react';
+import type { StoreApi } from 'zustand/vanilla';
+import type { AccessPolicy, BodyNeeded } from './access';
+import type { CommandDecl, CommandRunner } from './commands';
+import { LinkError } from './errors';
+import { backoffDelay, type Visibility } from './link';
+import type { MachineLog } from './log';
+import type { SimulatorFactory } from './sim';
+import type { LinkState, MachineInfo, MachineKind, MachineSnapshot, Role } from './types';
+
+/**
+ * The controller contract: what a family module provides. A family lives in one folder under
+ * `src/controllers/<kind>/` and is listed once in `src/controllers/index.ts` (browser: sessions
+ * and views) and once in `src/controllers/families.ts` (Node-safe: access rules, gateway hints,
+ * simulator) — the gateway must not load React views, hence the two lists.
+ */
+
+/** Node-safe part of a family: used by the gateway, `npm run sim` and the browser alike. */
+export interface FamilyDescriptor {
+  kind: MachineKind;
+  /** "xTool D-series" */
+  label: string;
+  /** Which requests need which role, which are commands (audited). */
+  access: AccessPolicy;
+  /** Requests whose body the gateway must read to classify them. */
+  accessNeedsBody?: BodyNeeded;
+  gateway?: GatewayHints;
+  createSimulator: SimulatorFactory;
+}
+
+export interface GatewaySecrets {
+  apiKey?: string;
+  password?: string;
+}
+
+export interface GatewayHints {
+  /** WebSocket port on the controller's host when the machine has no `wsUrl` (xTool: 8081). */
+  defaultWsPort?: number;
+  /**
+   * Add secrets to a forwarded request. `headers` and `query` are mutable copies; never put a
+   * secret anywhere it could be echoed back to the browser.
+   */
+  injectSecrets?: (
+    req: { method: string; path: string; headers: Record<string, string>; query: URLSearchParams },
+    secrets: GatewaySecrets,
+  ) => void;
+}
+
+/** Everything a session gets from the console. */
+export interface SessionContext {
+  machine: MachineInfo;
+  snapshot: StoreApi<MachineSnapshot>;
+  log: MachineLog;
+  commands: CommandRunner;
+  visibility: Visibility;
+  now: () => number;
+}
+
+export interface MachineSession {
+  readonly machine: MachineInfo;
+  readonly ctx: SessionContext;
+  start(): void;
+  /** Stop timers and sockets; say goodbye to the controller where the protocol wants it. */
+  stop(): void;
+  /** The declared commands, by id. */
+  readonly commands: Readonly<Record<string, CommandDecl<never>>>;
+  /** Acknowledge an alarm (clears the blocking banner; the controller may have its own ack). */
+  acknowledgeAlarm?(alarmId: string): void;
+  /** Log in when the machine says "needs login" (TouchCut user, Duet password). */
+  login?(credentials: Record<string, string>): Promise<void>;
+}
+
+export interface TabProps<S extends MachineSession> {
+  session: S;
+}
+
+export interface TabDecl<S extends MachineSession> {
+  id: string;
+  label: string;
+  Component: ComponentType<TabProps<S>>;
+  /** Least role that sees this tab at all (default viewer). */
+  role?: Role;
+}
+
+export interface ControllerModule<S extends MachineSession = MachineSession> extends FamilyDescriptor {
+  createSession(ctx: SessionContext): S;
+  /** Tabs of the machine page; the first is the overview. */
+  tabs: TabDecl<S>[];
+  /** Optional extra on the fleet tile (a screenshot thumbnail). */
+  TileExtra?: ComponentType<TabProps<S>>;
+  /** Optional login form when the link says needs-login. */
+  LoginForm?: ComponentType<TabProps<S>>;
+  /** Family-level pages outside any machine (xTool "Find lasers"), routed at `/<kind>/<path>`. */
+  pages?: Array<{ path: string; label: string; Component: ComponentType }>;
+}
+
+/** Erases the session type so modules of all families fit one registry. */
+export function defineController<S extends MachineSession>(m: ControllerModule<S>): ControllerModule {
+  return m as unknown as ControllerModule;
+}
+
+/**
+ * Link bookkeeping shared by sessions: writes link state, problem and retry time into the
+ * snapshot, counts failures and computes the backoff.
+ */
+export class LinkTracker {
+  failures = 0;
+
+  constructor(private readonly ctx: SessionContext) {}
+
+  get state(): LinkState {
+    return this.ctx.snapshot.getState().link;
+  }
+
+  /** Good data arrived. */
+  ok(patch: Partial<MachineSnapshot> = {}): void {
+    const wasDown = this.state !== 'online';
+    this.failures = 0;
+    this.ctx.snapshot.setState({
+      ...patch,
+      link: 'online',
+      problem: null,
+      retryAt: null,
+      updatedAt: this.ctx.now(),
+    });
+    if (wasDown) this.ctx.log.info('link', 'connected');
+  }
+
+  /** Merge vendor data into the snapshot without touching the link state. */
+  patch(patch: Partial<MachineSnapshot>): void {
+    this.ctx.snapshot.setState(patch);
+  }
+
+  /**
+   * A request failed. Returns the delay before the next attempt. Network errors and timeouts
+   * make the machine `reconnecting`, then `offline` after `offlineAfter` failures; a protocol
+   * error shows the path that failed; 401/403 mean `needs-login` when `authFailure` says so.
+   */
+  fail(e: unknown, opts: { offlineAfter?: number; needsLogin?: boolean } = {}): number {
+    this.failures++;
+    const delay = backoffDelay(this.failures - 1);
+    const err =
+      e instanceof LinkError ? e : new LinkError('network', e instanceof Error ? e.message : String(e));
+    const offlineAfter = opts.offlineAfter ?? 3;
+    let link: LinkState;
+    if (opts.needsLogin) link = 'needs-login';
+    else if (err.kind === 'protocol') link = 'protocol-error';
+    else if (this.failures >= offlineAfter) link = 'offline';
+    else link = 'reconnecting';
+    const prev = this.ctx.snapshot.getState();
+    const offline = link === 'offline' || link === 'reconnecting';
+    this.ctx.snapshot.setState({
+      link,
+      problem: err.toProblem(),
+      retryAt: link === 'needs-login' ? null : this.ctx.now() + delay,
+      ...(link === 'offline' ? { activity: 'offline', activityLabel: 'Offline' } : {}),
+      ...(offline && prev.activity === 'unknown' ? { activityLabel: 'Connecting…' } : {}),
+    });
+    if (prev.link !== link || prev.problem?.message !== err.message) {
+      this.ctx.log.add(
+        link === 'protocol-error' ? 'error' : 'warning',
+        'link',
+        `${linkWords(link)}: ${err.message}`,
+      );
+    }
+    return delay;
+  }
+}
+
+export function linkWords(link: LinkState): string {
+  switch (link) {
+    case 'connecting':
+      return 'Connecting';
+    case 'online':
+      return 'Online';
+    case 'reconnecting':
+      return 'Reconnecting';
+    case 'needs-login':
+      return 'Needs login';
+    case 'protocol-error':
+      return 'Protocol error';
+    case 'offline':
+      return 'Offline';
+  }
+}

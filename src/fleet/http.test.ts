@@ -1,0 +1,138 @@
+import { http, HttpResponse, delay } from 'msw';
+import { setupServer } from 'msw/node';
+import { afterAll, afterEach, beforeAll, describe, expect, it } from 'vitest';
+import { z } from 'zod';
+import { LinkError } from './errors';
+import { HttpClient } from './http';
+
+const server = setupServer();
+beforeAll(() => server.listen({ onUnhandledRequest: 'error' }));
+afterEach(() => server.resetHandlers());
+afterAll(() => server.close());
+
+const base = 'http://shopdeck.test/machines/m1';
+const Progress = z.object({ progress: z.coerce.number(), working: z.coerce.number() });
+
+async function caught(p: Promise<unknown>): Promise<LinkError> {
+  try {
+    await p;
+  } catch (e) {
+    if (e instanceof LinkError) return e;
+    throw e;
+  }
+  throw new Error('expected a LinkError');
+}
+
+describe('HttpClient error taxonomy', () => {
+  it('parses JSON sent without a JSON content type and coerces sloppy numbers', async () => {
+    server.use(
+      http.get(
+        `${base}/progress`,
+        () =>
+          new HttpResponse('{"progress":"12.5","working":"300"}', {
+            headers: { 'Content-Type': 'text/html' },
+          }),
+      ),
+    );
+    const c = new HttpClient({ machineId: 'm1' });
+    await expect(c.json({ path: '/progress' }, Progress)).resolves.toEqual({ progress: 12.5, working: 300 });
+  });
+
+  it('classifies a network failure', async () => {
+    server.use(http.get(`${base}/progress`, () => HttpResponse.error()));
+    const e = await caught(new HttpClient({ machineId: 'm1' }).json({ path: '/progress' }, Progress));
+    expect(e.kind).toBe('network');
+  });
+
+  it('classifies a timeout', async () => {
+    server.use(
+      http.get(`${base}/progress`, async () => {
+        await delay(500);
+        return HttpResponse.json({});
+      }),
+    );
+    const e = await caught(
+      new HttpClient({ machineId: 'm1', timeoutMs: 50 }).json({ path: '/progress' }, Progress),
+    );
+    expect(e.kind).toBe('timeout');
+  });
+
+  it('carries the HTTP status, and the vendor code and message when the family parses them', async () => {
+    server.use(
+      http.get(`${base}/status`, () =>
+        HttpResponse.json({ code: '1003', msg: 'Missing parameter' }, { status: 400 }),
+      ),
+    );
+    const plain = await caught(new HttpClient({ machineId: 'm1' }).raw({ path: '/status' }));
+    expect(plain.kind).toBe('http');
+    expect(plain.status).toBe(400);
+    const withVendor = new HttpClient({
+      machineId: 'm1',
+      parseError: (status, body) => {
+        const r = z.object({ code: z.string(), msg: z.string() }).safeParse(body);
+        return r.success
+          ? new LinkError('vendor', r.data.msg, {
+              status,
+              vendorCode: r.data.code,
+              vendorMessage: r.data.msg,
+            })
+          : null;
+      },
+    });
+    const v = await caught(withVendor.raw({ path: '/status' }));
+    expect(v.kind).toBe('vendor');
+    expect(v.vendorCode).toBe('1003');
+    expect(v.status).toBe(400);
+  });
+
+  it('turns a payload that fails validation into a protocol error naming the path', async () => {
+    server.use(http.get(`${base}/progress`, () => HttpResponse.json({ progress: 'lots', working: 1 })));
+    const e = await caught(new HttpClient({ machineId: 'm1' }).json({ path: '/progress' }, Progress));
+    expect(e.kind).toBe('protocol');
+    expect(e.path).toBe('progress');
+    expect(e.message).toContain('/progress');
+  });
+
+  it('reports a body that is not JSON as a protocol error', async () => {
+    server.use(http.get(`${base}/progress`, () => new HttpResponse('{"progress":1,')));
+    const e = await caught(new HttpClient({ machineId: 'm1' }).json({ path: '/progress' }, Progress));
+    expect(e.kind).toBe('protocol');
+  });
+
+  it('serializes requests when asked: never two at once to a fragile controller', async () => {
+    let concurrent = 0;
+    let max = 0;
+    server.use(
+      http.get(`${base}/ping`, async () => {
+        concurrent++;
+        max = Math.max(max, concurrent);
+        await delay(20);
+        concurrent--;
+        return HttpResponse.json({ result: 'ok' });
+      }),
+    );
+    const c = new HttpClient({ machineId: 'm1', serial: true });
+    await Promise.all([1, 2, 3, 4].map(() => c.raw({ path: '/ping' })));
+    expect(max).toBe(1);
+    const free = new HttpClient({ machineId: 'm1' });
+    max = 0;
+    await Promise.all([1, 2, 3, 4].map(() => free.raw({ path: '/ping' })));
+    expect(max).toBeGreaterThan(1);
+  });
+
+  it('sends the command id for the audit log', async () => {
+    let seen: string | null = null;
+    server.use(
+      http.get(`${base}/cnc/data`, ({ request }) => {
+        seen = request.headers.get('X-Shopdeck-Command');
+        return HttpResponse.json({ result: 'ok' });
+      }),
+    );
+    await new HttpClient({ machineId: 'm1' }).raw({
+      path: '/cnc/data',
+      query: { action: 'pause' },
+      commandId: 'xtool.pause',
+    });
+    expect(seen).toBe('xtool.pause');
+  });
+});

@@ -1,0 +1,258 @@
+import { wsUrlFor } from './origin';
+/**
+ * Per-machine link machinery: backoff, a poll scheduler that never overlaps, page visibility,
+ * and a WebSocket that reconnects. Each machine has its own instances: one dead controller
+ * never slows another.
+ */
+
+export interface BackoffOptions {
+  baseMs?: number;
+  maxMs?: number;
+  /** 0..1 share of the delay that is random (full jitter = 1). */
+  jitter?: number;
+  random?: () => number;
+}
+
+/** Exponential backoff with jitter, about 1 s to 30 s. `attempt` counts from 0. */
+export function backoffDelay(attempt: number, opts: BackoffOptions = {}): number {
+  const base = opts.baseMs ?? 1000;
+  const max = opts.maxMs ?? 30_000;
+  const jitter = opts.jitter ?? 0.3;
+  const random = opts.random ?? Math.random;
+  const raw = Math.min(max, base * 2 ** Math.max(0, attempt));
+  const low = raw * (1 - jitter);
+  return Math.round(low + (raw - low) * random());
+}
+
+/** Page visibility, injectable for tests and Node. */
+export interface Visibility {
+  hidden(): boolean;
+  subscribe(fn: () => void): () => void;
+}
+
+export const documentVisibility: Visibility = {
+  hidden: () => typeof document !== 'undefined' && document.visibilityState === 'hidden',
+  subscribe: (fn) => {
+    if (typeof document === 'undefined') return () => undefined;
+    document.addEventListener('visibilitychange', fn);
+    return () => document.removeEventListener('visibilitychange', fn);
+  },
+};
+
+export const alwaysVisible: Visibility = { hidden: () => false, subscribe: () => () => undefined };
+
+/** While the page is hidden a machine is polled at most once per this many ms. */
+export const HIDDEN_POLL_MS = 10_000;
+
+export interface PollerOptions {
+  /** The poll: resolves when done. A poll is never started while the previous one runs. */
+  run: () => Promise<void>;
+  /** Interval (ms) measured from the end of one poll to the start of the next. */
+  intervalMs: () => number;
+  visibility?: Visibility;
+  /** Called with the error of a failed poll; the poller keeps going at `retryDelayMs`. */
+  onError?: (e: unknown) => void;
+  /** Delay after a failed poll; defaults to the interval. */
+  retryDelayMs?: (failures: number) => number;
+}
+
+/**
+ * A poll scheduler: one timer, one poll in flight at most, slower while the page is hidden
+ * (never more often than HIDDEN_POLL_MS), and `kick()` to poll now (when no poll is running).
+ */
+export class Poller {
+  private timer: ReturnType<typeof setTimeout> | null = null;
+  private running = false;
+  private stopped = true;
+  private failures = 0;
+  private unsubscribe: (() => void) | null = null;
+  private readonly vis: Visibility;
+  /** Count of polls started, for tests and benchmarks. */
+  started = 0;
+
+  constructor(private readonly opts: PollerOptions) {
+    this.vis = opts.visibility ?? documentVisibility;
+  }
+
+  start(delayMs = 0): void {
+    if (!this.stopped) return;
+    this.stopped = false;
+    this.unsubscribe = this.vis.subscribe(() => {
+      // Back on screen: refresh soon rather than waiting out a long hidden interval.
+      if (!this.vis.hidden() && !this.running) this.schedule(0);
+    });
+    this.schedule(delayMs);
+  }
+
+  stop(): void {
+    this.stopped = true;
+    if (this.timer) clearTimeout(this.timer);
+    this.timer = null;
+    this.unsubscribe?.();
+    this.unsubscribe = null;
+  }
+
+  get isRunning(): boolean {
+    return !this.stopped;
+  }
+
+  /** Poll as soon as possible (after the one in flight, if any). */
+  kick(): void {
+    if (this.stopped) return;
+    if (this.running) return;
+    this.schedule(0);
+  }
+
+  private nextDelay(): number {
+    const base =
+      this.failures > 0 && this.opts.retryDelayMs
+        ? this.opts.retryDelayMs(this.failures)
+        : this.opts.intervalMs();
+    return this.vis.hidden() ? Math.max(base, HIDDEN_POLL_MS) : base;
+  }
+
+  private schedule(delayMs: number): void {
+    if (this.stopped) return;
+    if (this.timer) clearTimeout(this.timer);
+    this.timer = setTimeout(() => void this.tick(), delayMs);
+  }
+
+  private async tick(): Promise<void> {
+    this.timer = null;
+    if (this.stopped || this.running) return;
+    this.running = true;
+    this.started++;
+    try {
+      await this.opts.run();
+      this.failures = 0;
+    } catch (e) {
+      this.failures++;
+      this.opts.onError?.(e);
+    } finally {
+      this.running = false;
+    }
+    if (!this.stopped && !this.timer) this.schedule(this.nextDelay());
+  }
+}
+
+export type SocketData = string | ArrayBuffer | Blob;
+
+export interface SocketLinkOptions {
+  /** URL (same origin): "/machines/<id>/machine?sessionKey=…" — made absolute ws(s):// here. */
+  url: () => string;
+  onOpen?: () => void;
+  onMessage: (data: string) => void;
+  /** Every close, with the code; return false to stop reconnecting. */
+  onClose?: (code: number, reason: string) => boolean | void;
+  backoff?: BackoffOptions;
+  /** Start the first connection immediately (default) or wait for connect(). */
+  autoConnect?: boolean;
+}
+
+/**
+ * A WebSocket that reconnects with backoff. Sockets are created from `globalThis.WebSocket`
+ * at connect time (msw's ws.link patches it). It never buffers outgoing messages while closed:
+ * `send` returns false and the caller decides.
+ */
+export class SocketLink {
+  private ws: WebSocket | null = null;
+  private attempt = 0;
+  private timer: ReturnType<typeof setTimeout> | null = null;
+  private closedByUs = false;
+  /** When the next reconnect is due (ms since epoch) or null. */
+  retryAt: number | null = null;
+
+  constructor(private readonly opts: SocketLinkOptions) {
+    if (opts.autoConnect !== false) this.connect();
+  }
+
+  get open(): boolean {
+    return this.ws !== null && this.ws.readyState === 1;
+  }
+
+  connect(): void {
+    this.closedByUs = false;
+    if (this.timer) clearTimeout(this.timer);
+    this.timer = null;
+    this.retryAt = null;
+    const url = absoluteWsUrl(this.opts.url());
+    let ws: WebSocket;
+    try {
+      ws = new globalThis.WebSocket(url);
+    } catch {
+      this.scheduleReconnect();
+      return;
+    }
+    this.ws = ws;
+    ws.onopen = () => {
+      this.attempt = 0;
+      this.opts.onOpen?.();
+    };
+    ws.onmessage = (ev: MessageEvent) => {
+      const d: unknown = ev.data;
+      if (typeof d === 'string') this.opts.onMessage(d);
+      else if (d instanceof ArrayBuffer) this.opts.onMessage(new TextDecoder().decode(d));
+      else if (d instanceof Blob) void d.text().then((t) => this.opts.onMessage(t));
+    };
+    ws.onclose = (ev: CloseEvent) => {
+      if (this.ws !== ws) return;
+      this.ws = null;
+      const again = this.opts.onClose?.(ev.code, ev.reason);
+      if (!this.closedByUs && again !== false) this.scheduleReconnect();
+    };
+    ws.onerror = () => {
+      // onclose follows.
+    };
+  }
+
+  send(data: string): boolean {
+    if (!this.ws || this.ws.readyState !== 1) return false;
+    this.ws.send(data);
+    return true;
+  }
+
+  /** Drop the current socket and reconnect after backoff (dead link detected by the caller). */
+  restart(): void {
+    const ws = this.ws;
+    this.ws = null;
+    if (ws) {
+      ws.onclose = null;
+      ws.onmessage = null;
+      try {
+        ws.close();
+      } catch {
+        /* ignore */
+      }
+    }
+    this.scheduleReconnect();
+  }
+
+  close(): void {
+    this.closedByUs = true;
+    if (this.timer) clearTimeout(this.timer);
+    this.timer = null;
+    this.retryAt = null;
+    const ws = this.ws;
+    this.ws = null;
+    if (ws) {
+      ws.onclose = null;
+      ws.onmessage = null;
+      try {
+        ws.close(1000);
+      } catch {
+        /* ignore */
+      }
+    }
+  }
+
+  private scheduleReconnect(): void {
+    if (this.closedByUs) return;
+    const delay = backoffDelay(this.attempt++, this.opts.backoff);
+    this.retryAt = Date.now() + delay;
+    this.timer = setTimeout(() => this.connect(), delay);
+  }
+}
+
+export function absoluteWsUrl(url: string): string {
+  return wsUrlFor(url);
+}

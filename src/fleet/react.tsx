@@ -1,0 +1,214 @@
+import { useCallback, useEffect, useMemo, useState, type ReactNode } from 'react';
+import { useStore, type StoreApi } from 'zustand';
+import { useShallow } from 'zustand/react/shallow';
+import { Button, Dialog, downloadText, formatTime } from '../ui';
+import { authStore } from './auth';
+import { confirmationText, type CommandDecl, type CommandRunner } from './commands';
+import type { SessionContext } from './contract';
+import type { LogEntry, MachineLog } from './log';
+import type { MachineSnapshot, Role } from './types';
+import { roleAtLeast } from './types';
+
+/**
+ * React glue: components read stores through selectors that return stable references
+ * (useShallow for objects), so a tile re-renders only when its own machine's values change.
+ */
+export function useStoreSelect<T, U>(store: StoreApi<T>, selector: (s: T) => U): U {
+  return useStore(store, useShallow(selector));
+}
+
+export function useSnapshot<U>(
+  ctx: Pick<SessionContext, 'snapshot'>,
+  selector: (s: MachineSnapshot) => U,
+): U {
+  return useStore(ctx.snapshot, useShallow(selector));
+}
+
+/** The current time, refreshed every `everyMs` (for data ages and countdowns). */
+export function useNow(everyMs = 1000): number {
+  const [now, setNow] = useState(() => Date.now());
+  useEffect(() => {
+    const t = setInterval(() => setNow(Date.now()), everyMs);
+    return () => clearInterval(t);
+  }, [everyMs]);
+  return now;
+}
+
+/** The role the UI acts as (open mode: supervisor). */
+export function useRole(): Role {
+  return useStore(authStore, (s) => (s.mode === 'secured' ? (s.user?.role ?? 'viewer') : 'supervisor'));
+}
+
+export function useCan(role: Role): boolean {
+  return roleAtLeast(useRole(), role);
+}
+
+/**
+ * The one way a command leaves the console: a button that confirms (by hazard), shows the
+ * in-flight state, cannot be sent twice, and says why it is disabled.
+ */
+export function CommandButton<A>(props: {
+  runner: CommandRunner;
+  snapshot: StoreApi<MachineSnapshot>;
+  command: CommandDecl<A>;
+  args: A;
+  children?: ReactNode;
+  variant?: 'primary' | 'secondary' | 'danger';
+  small?: boolean;
+  /** Hide instead of disabling when the user's role is too low. */
+  hideWhenNotAllowed?: boolean;
+  /** Extra confirmation body (what exactly will happen). */
+  details?: ReactNode;
+  onDone?: (result: string) => void;
+  onError?: (message: string) => void;
+  testId?: string;
+}) {
+  const { runner, command, args } = props;
+  const role = useRole();
+  const inFlight = useStore(runner.state, (s) => Boolean(s.inFlight[command.id]));
+  const last = useStore(runner.state, (s) => s.last[command.id]);
+  // Re-evaluate availability when the snapshot changes.
+  useStore(props.snapshot, (s) => `${s.link}|${s.activity}|${s.activityLabel}|${s.alarms.length}`);
+  const [confirmStep, setConfirmStep] = useState(0);
+  const [error, setError] = useState<string | null>(null);
+  const allowed = roleAtLeast(role, command.role);
+  const reason = runner.blockedReason(command);
+  const confirmText = confirmationText(command, args);
+
+  const send = useCallback(async () => {
+    setConfirmStep(0);
+    setError(null);
+    try {
+      const r = await runner.run(command, args);
+      props.onDone?.(r);
+    } catch (e) {
+      const msg = e instanceof Error ? e.message : String(e);
+      setError(msg);
+      props.onError?.(msg);
+    }
+    // eslint-disable-next-line react-hooks/exhaustive-deps
+  }, [runner, command, args]);
+
+  if (!allowed && props.hideWhenNotAllowed) return null;
+  const onClick = () => {
+    if (reason) return;
+    if (confirmText) setConfirmStep(1);
+    else void send();
+  };
+  const title = reason ?? (last && !last.ok ? `Last attempt failed: ${last.message}` : command.label);
+  return (
+    <>
+      <Button
+        variant={
+          props.variant ??
+          (command.hazard === 'stop' || command.hazard === 'dangerous' ? 'danger' : 'secondary')
+        }
+        small={props.small}
+        busy={inFlight}
+        disabled={Boolean(reason) || inFlight}
+        onClick={onClick}
+        title={title}
+        aria-label={typeof props.children === 'string' ? undefined : command.label}
+        data-testid={props.testId ?? `cmd-${command.id}`}
+        data-hazard={command.hazard}
+      >
+        {inFlight ? `${command.label}…` : (props.children ?? command.label)}
+      </Button>
+      {error && (
+        <span
+          className="ui-muted"
+          role="alert"
+          style={{ color: 'var(--bad)' }}
+          data-testid={`cmd-error-${command.id}`}
+        >
+          {error}
+        </span>
+      )}
+      {confirmStep > 0 && confirmText && (
+        <Dialog
+          title={confirmStep === 2 ? `Really ${command.label.toLowerCase()}?` : command.label}
+          onCancel={() => setConfirmStep(0)}
+          testId="confirm-dialog"
+          actions={
+            <>
+              <Button onClick={() => setConfirmStep(0)} data-autofocus>
+                Cancel
+              </Button>
+              <Button
+                variant={command.hazard === 'dangerous' || command.hazard === 'stop' ? 'danger' : 'primary'}
+                data-testid="confirm-yes"
+                onClick={() => {
+                  if (command.confirmTwice && confirmStep === 1) setConfirmStep(2);
+                  else void send();
+                }}
+              >
+                {command.confirmTwice && confirmStep === 1
+                  ? 'Continue'
+                  : `Yes, ${command.label.toLowerCase()}`}
+              </Button>
+            </>
+          }
+        >
+          <p>{confirmText}</p>
+          {props.details}
+          {confirmStep === 2 && (
+            <p>
+              <strong>This is the second confirmation.</strong>
+            </p>
+          )}
+        </Dialog>
+      )}
+    </>
+  );
+}
+
+/** A machine's log: filter, pause, copy, download. */
+export function LogView(props: { log: MachineLog; sources?: string[]; height?: number; testId?: string }) {
+  const entries = useStore(props.log.store, (s) => s.entries);
+  const [filter, setFilter] = useState('');
+  const [paused, setPaused] = useState<LogEntry[] | null>(null);
+  const shown = useMemo(() => {
+    const src = paused ?? entries;
+    const f = filter.trim().toLowerCase();
+    return src.filter(
+      (e) =>
+        (!props.sources || props.sources.includes(e.source)) &&
+        (!f || e.text.toLowerCase().includes(f) || e.source.includes(f)),
+    );
+  }, [entries, paused, filter, props.sources]);
+  const asText = () =>
+    shown.map((e) => `${new Date(e.at).toISOString()} ${e.level} ${e.source}: ${e.text}`).join('\n');
+  return (
+    <div data-testid={props.testId ?? 'log-view'}>
+      <div className="ui-row" style={{ marginBottom: 8 }}>
+        <input
+          className="ui-input"
+          placeholder="Filter"
+          aria-label="Filter log"
+          value={filter}
+          onChange={(e) => setFilter(e.target.value)}
+          style={{ flex: 1, minWidth: 160 }}
+        />
+        <Button small onClick={() => setPaused(paused ? null : entries)}>
+          {paused ? 'Resume' : 'Pause'}
+        </Button>
+        <Button small onClick={() => void navigator.clipboard?.writeText(asText())}>
+          Copy
+        </Button>
+        <Button small onClick={() => downloadText(`${props.log.machineId}-log.txt`, asText(), 'text/plain')}>
+          Download
+        </Button>
+      </div>
+      <div className="ui-log" style={{ maxHeight: props.height ?? 420 }} role="log" aria-live="polite">
+        {shown.length === 0 && <div className="ui-muted">No entries.</div>}
+        {shown.map((e) => (
+          <div key={e.seq} className={`lv-${e.level}`}>
+            <span className="t">{formatTime(e.at)}</span>
+            <span className="src">{e.source}</span>
+            {e.text}
+          </div>
+        ))}
+      </div>
+    </div>
+  );
+}

@@ -1,0 +1,120 @@
+/**
+ * Vendor-neutral vocabulary of the console. Everything here is plain data: it is shared by the
+ * browser, the gateway (Node) and the simulators.
+ */
+
+export const MACHINE_KINDS = ['touchcut', 'g2core', 'duet', 'xtool', 'prunt'] as const;
+export type MachineKind = (typeof MACHINE_KINDS)[number];
+
+/** What the browser learns about a machine from `GET /api/machines`: nothing secret. */
+export interface MachineInfo {
+  id: string;
+  name: string;
+  kind: MachineKind;
+  simulated: boolean;
+}
+
+export const ROLES = ['viewer', 'operator', 'supervisor'] as const;
+export type Role = (typeof ROLES)[number];
+
+export function roleAtLeast(have: Role, need: Role): boolean {
+  return ROLES.indexOf(have) >= ROLES.indexOf(need);
+}
+
+/** Hazard classes of DESIGN.md, principle 4. */
+export type Hazard = 'read' | 'adjust' | 'motion' | 'job' | 'stop' | 'dangerous';
+
+/** State of the link between the console and one controller. */
+export type LinkState =
+  'connecting' | 'online' | 'reconnecting' | 'needs-login' | 'protocol-error' | 'offline';
+
+/** Normalized activity: what the machine is doing, for fleet views. */
+export type Activity = 'offline' | 'idle' | 'running' | 'paused' | 'stopping' | 'error' | 'alarm' | 'unknown';
+
+export type AlarmSeverity = 'info' | 'warning' | 'critical';
+
+export interface Alarm {
+  /** Stable within a machine: the same condition keeps the same id while it lasts. */
+  id: string;
+  severity: AlarmSeverity;
+  message: string;
+  /** ms since epoch */
+  since: number;
+  /** Critical alarms that block every page until acknowledged (xTool flame). */
+  blocking?: boolean;
+  acknowledged?: boolean;
+  /** What clears it, in words ("clear alarm", "power cycle"). */
+  clears?: string;
+}
+
+export interface JobSummary {
+  name: string | null;
+  /** 0..1, null when unknown */
+  progress: number | null;
+  /** seconds */
+  elapsed: number | null;
+  /** seconds */
+  remaining: number | null;
+}
+
+export interface Temperature {
+  name: string;
+  current: number | null;
+  target: number | null;
+}
+
+export interface LinkProblem {
+  /** network | timeout | http | protocol | vendor | auth */
+  kind: string;
+  message: string;
+  /** zod issue path for protocol errors, e.g. "progress.working" */
+  path?: string;
+}
+
+export interface MachineSnapshot {
+  id: string;
+  link: LinkState;
+  /** When link is reconnecting: when the next attempt is due (ms since epoch). */
+  retryAt: number | null;
+  problem: LinkProblem | null;
+  activity: Activity;
+  /** Vendor words for the activity ("Job loaded — press the button on the machine"). */
+  activityLabel: string;
+  job: JobSummary | null;
+  alarms: Alarm[];
+  positions: Record<string, number>;
+  temperatures: Temperature[];
+  /** ms since epoch of the last good data from the controller. */
+  updatedAt: number | null;
+  /** Short model / firmware line ("xTool D1Pro · V40.31.006.01 B2"). */
+  identity: string | null;
+}
+
+export function emptySnapshot(id: string): MachineSnapshot {
+  return {
+    id,
+    link: 'connecting',
+    retryAt: null,
+    problem: null,
+    activity: 'unknown',
+    activityLabel: 'Connecting…',
+    job: null,
+    alarms: [],
+    positions: {},
+    temperatures: [],
+    updatedAt: null,
+    identity: null,
+  };
+}
+
+const SEVERITY_RANK: Record<AlarmSeverity, number> = { info: 0, warning: 1, critical: 2 };
+
+export function mostSevereAlarm(alarms: readonly Alarm[]): Alarm | null {
+  let best: Alarm | null = null;
+  for (const a of alarms) {
+    if (!best || SEVERITY_RANK[a.severity] > SEVERITY_RANK[best.severity]) best = a;
+  }
+  return best;
+}
+
+export const MACHINE_ID = /^[a-z0-9-]{1,40}$/;

@@ -1,0 +1,14 @@
+import react from '@vitejs/plugin-react';
+import { defineConfig } from 'vite';
+import { shopdeckGateway } from './gateway/plugin';
+
+// The gateway is a Vite plugin: the same code serves `npm run dev` and `npm start` (vite preview).
+export default defineConfig({
+  plugins: [react(), shopdeckGateway()],
+  server: { port: Number(process.env.SHOPDECK_PORT ?? 5173), host: process.env.SHOPDECK_HOST ?? 'localhost' },
+  preview: {
+    port: Number(process.env.SHOPDECK_PORT ?? 4173),
+    host: process.env.SHOPDECK_HOST ?? 'localhost',
+  },
+  build: { sourcemap: true, chunkSizeWarningLimit: 2000 },
+});
