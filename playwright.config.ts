@@ -50,6 +50,6 @@ export default defineConfig({
     url: `http://127.0.0.1:${port}/api/machines`,
     reuseExistingServer: false,
     timeout: 60_000,
-    env: { SHOPDECK_DATA: dataDir, SHOPDECK_MACHINES: '', SHOPDECK_USERS: '' },
+    env: { SHOPDECK_DATA: dataDir, SHOPDECK_MACHINES: 'tests/e2e/demo-machines.json' },
   },
 });

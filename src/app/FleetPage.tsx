@@ -195,7 +195,7 @@ function TileBody({ info, rt }: { info: MachineInfo; rt: MachineRuntime }) {
         </Badge>
         <Age at={s.updatedAt} />
       </footer>
-      {s.problem && s.link !== 'online' && (
+      {s.problem && s.link !== 'online' && s.problem.message !== s.activityLabel && (
         <div className="tile-problem small" title={s.problem.message}>
           {s.problem.message}
         </div>

@@ -59,7 +59,7 @@ function MachinePageBody({ rt, tab }: { rt: MachineRuntime; tab: string | null }
       tabs.push({ id: t.id, label: t.label, render: () => <C session={session} /> });
     }
   }
-  tabs.push({ id: 'log', label: 'Log', render: () => <LogView log={rt.log} /> });
+  tabs.push({ id: 'events', label: 'Event log', render: () => <LogView log={rt.log} /> });
   if (info.simulated)
     tabs.push({ id: 'simulator', label: 'Simulator', render: () => <SimulatorPanel id={info.id} /> });
   const current = tabs.find((t) => t.id === tab) ?? tabs[0];

@@ -26,13 +26,19 @@ export function simulatorHandlers(
   const link = ws.link(`${wsUrlFor(base)}/*`);
   const wsHandler = link.addEventListener('connection', ({ client }) => {
     const url = new URL(client.url);
+    let closed = false;
+    client.addEventListener('close', () => {
+      closed = true;
+    });
     const path = url.pathname.slice(`/machines/${machineId}`.length) + url.search;
     const h = sim.socket?.(path || '/', {
       send: (d) => {
-        if (client.socket.readyState > 1) return;
-        client.send(d);
+        if (!closed) client.send(d);
       },
-      close: (code, reason) => client.close(code, reason),
+      close: (code, reason) => {
+        closed = true;
+        client.close(code, reason);
+      },
     });
     if (!h) {
       client.close(4404, 'no socket here');

@@ -1,0 +1,98 @@
+// @vitest-environment happy-dom
+import { act, cleanup, render, screen, within } from '@testing-library/react';
+import { afterEach, beforeEach, describe, expect, it, vi } from 'vitest';
+import type { ControllerModule, MachineSession, SessionContext } from '../fleet/contract';
+import { createRuntime, fleetStore, registerRuntime, getRuntime } from '../fleet/fleet';
+import { alwaysVisible } from '../fleet/link';
+import type { MachineInfo } from '../fleet/types';
+
+function fakeModule(kind: 'xtool' | 'duet', TileExtra?: () => never): ControllerModule {
+  return {
+    kind,
+    label: kind === 'xtool' ? 'Fake laser' : 'Fake printer',
+    access: () => ({ role: 'viewer', command: false, label: 'read' }),
+    createSimulator: () => {
+      throw new Error('not used');
+    },
+    createSession: (ctx: SessionContext): MachineSession => ({
+      machine: ctx.machine,
+      ctx,
+      commands: {},
+      start: () => undefined,
+      stop: () => undefined,
+    }),
+    tabs: [],
+    ...(TileExtra ? { TileExtra } : {}),
+  };
+}
+
+vi.mock('../controllers', () => ({
+  controllers: {
+    xtool: fakeModule('xtool', () => {
+      throw new Error('tile exploded');
+    }),
+    duet: fakeModule('duet'),
+  },
+}));
+
+const { FleetPage } = await import('./FleetPage');
+const { controllers } = await import('../controllers');
+
+function addMachine(info: MachineInfo) {
+  const mod = controllers[info.kind];
+  const rt = createRuntime(info, mod ? (c) => mod.createSession(c) : null, { visibility: alwaysVisible });
+  registerRuntime(rt);
+  return rt;
+}
+
+describe('FleetPage', () => {
+  beforeEach(() => {
+    vi.useFakeTimers({ toFake: ['Date', 'setInterval', 'clearInterval'] });
+    vi.setSystemTime(new Date('2026-11-21T10:00:00Z'));
+    vi.spyOn(console, 'error').mockImplementation(() => undefined);
+  });
+  afterEach(() => {
+    cleanup();
+    vi.useRealTimers();
+    vi.restoreAllMocks();
+  });
+
+  it('shows one tile per machine with state in words, and one broken tile never blanks the others', () => {
+    const broken = { id: 'laser', name: 'Laser', kind: 'xtool' as const, simulated: true };
+    const ok = { id: 'printer', name: 'Printer', kind: 'duet' as const, simulated: false };
+    addMachine(broken);
+    const rt = getRuntime('printer') ?? addMachine(ok);
+    rt.snapshot.setState({
+      link: 'online',
+      activity: 'running',
+      activityLabel: 'Printing layer 12',
+      job: { name: 'bracket.gcode', progress: 0.42, elapsed: 600, remaining: 1200 },
+      updatedAt: Date.now(),
+    });
+    fleetStore.setState({ status: 'ready', machines: [broken, ok], error: null });
+    render(<FleetPage />);
+    const tile = screen.getByTestId('tile-printer');
+    expect(within(tile).getByTestId('tile-activity').textContent).toBe('Running');
+    expect(within(tile).getByText('bracket.gcode')).toBeTruthy();
+    expect(within(tile).getByText('42 %')).toBeTruthy();
+    expect(within(tile).getByText('20 min 00 s left')).toBeTruthy();
+    // The broken machine's tile shows its error; the summary still counts the good one.
+    expect(screen.getByTestId('error-boundary').textContent).toContain('tile exploded');
+    expect(screen.getByTestId('summary-running').textContent).toBe('1 running');
+  });
+
+  it('marks data older than 10 s as stale', () => {
+    const m = { id: 'stale-one', name: 'Stale', kind: 'duet' as const, simulated: false };
+    const rt = addMachine(m);
+    rt.snapshot.setState({ link: 'online', activity: 'idle', activityLabel: 'Idle', updatedAt: Date.now() });
+    fleetStore.setState({ status: 'ready', machines: [m], error: null });
+    render(<FleetPage />);
+    const age = () => within(screen.getByTestId('tile-stale-one')).getByTestId('data-age');
+    expect(age().dataset.stale).toBe('false');
+    act(() => {
+      vi.advanceTimersByTime(11_000);
+    });
+    expect(age().dataset.stale).toBe('true');
+    expect(age().textContent).toContain('stale');
+  });
+});

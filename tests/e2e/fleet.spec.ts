@@ -1,0 +1,62 @@
+import { expect, test } from '@playwright/test';
+
+const FAMILIES = ['demo-xtool', 'demo-touchcut', 'demo-duet', 'demo-prunt', 'demo-g2core'];
+
+test.describe('fleet', () => {
+  test('shows every demo machine with its state in words and opens a bookmarkable machine page', async ({
+    page,
+  }) => {
+    await page.goto('/');
+    await expect(page.getByTestId('open-mode-banner')).toBeVisible();
+    for (const id of FAMILIES) {
+      const tile = page.getByTestId(`tile-${id}`);
+      await expect(tile).toBeVisible();
+      // Each simulated machine connects: its link badge reads Online and its state is not "Unknown".
+      await expect(tile.getByTestId('tile-link')).toHaveText('Online');
+      await expect(tile.getByTestId('tile-activity')).not.toHaveText('Unknown');
+      await expect(tile.getByText('simulated')).toBeVisible();
+    }
+    await expect(page.getByTestId('fleet-summary')).toContainText('5 machines');
+
+    await page.getByTestId('tile-demo-duet').click();
+    await expect(page).toHaveURL(/\/m\/demo-duet$/);
+    await expect(page.getByTestId('simulated-banner')).toBeVisible();
+    await expect(page.getByTestId('machine-link')).toHaveText('Online');
+
+    // The URL is a bookmark: a fresh load lands on the same machine.
+    await page.goto('/m/demo-g2core');
+    await expect(page.getByRole('heading', { level: 1 })).toHaveText('CNC router — g2core');
+    await page.goto('/m/no-such-machine');
+    await expect(page.getByText('There is no machine')).toBeVisible();
+  });
+
+  test('touch targets on the fleet and machine pages are at least 44 px', async ({ page }, info) => {
+    test.skip(info.project.name !== 'tablet', 'tablet layout only');
+    await page.goto('/m/demo-xtool');
+    await expect(page.getByTestId('machine-link')).toHaveText('Online');
+    const small = await page.evaluate(() =>
+      [...document.querySelectorAll('main button, main [role="tab"], .topnav a')]
+        .filter((el) => (el as HTMLElement).offsetParent !== null)
+        .map((el) => ({
+          text: (el.textContent ?? '').trim().slice(0, 30),
+          h: el.getBoundingClientRect().height,
+        }))
+        .filter((b) => b.h < 44 && b.h > 0),
+    );
+    expect(small).toEqual([]);
+  });
+
+  test('a dropped simulator shows the machine reconnecting while the others stay online', async ({
+    page,
+  }) => {
+    await page.goto('/m/demo-prunt/simulator');
+    await expect(page.getByTestId('machine-link')).toHaveText('Online');
+    await page.getByTestId('fault-drop').check();
+    await page.getByTestId('fault-close-sockets').click();
+    await expect(page.getByTestId('machine-link')).not.toHaveText('Online', { timeout: 30_000 });
+    // Back to the fleet inside the same page (a reload would restart the simulators).
+    await page.getByRole('navigation', { name: 'Main' }).getByRole('link', { name: 'Fleet' }).click();
+    await expect(page.getByTestId('tile-demo-prunt').getByTestId('tile-link')).not.toHaveText('Online');
+    await expect(page.getByTestId('tile-demo-duet').getByTestId('tile-link')).toHaveText('Online');
+  });
+});
