@@ -46,7 +46,7 @@ export default defineConfig({
     },
   ],
   webServer: {
-    command: `npx vite preview --port ${port} --strictPort --host 127.0.0.1`,
+    command: `npx vite preview --configLoader runner --port ${port} --strictPort --host 127.0.0.1`,
     url: `http://127.0.0.1:${port}/api/machines`,
     reuseExistingServer: false,
     timeout: 60_000,
