@@ -1,0 +1,43 @@
+import { defaultDecision, operator, read, supervisor, type AccessPolicy } from '../../fleet/access';
+
+/**
+ * Who may send which Prunt request (the gateway enforces it; the UI hides by the same rules).
+ * - viewer: every GET (schemas, values, status, files, update check, board images) and the
+ *   live socket (its only client→server frame is the tick divisor).
+ * - operator: job controls — pause, resume, cancel, run an uploaded file (starting a print from
+ *   the console is this printer's ordinary "start", not a remote-start safety override), uploading.
+ * - supervisor: config writes, reloading the server, G-code console, firmware permission, deletes.
+ * Anything undeclared: the core default (GET read, otherwise supervisor).
+ */
+export const pruntAccess: AccessPolicy = (req) => {
+  const path = req.path.replace(/\/+$/, '') || '/';
+  if (req.websocket) return read('live status and logs');
+  const m = req.method.toUpperCase();
+  if (m === 'GET' || m === 'HEAD') {
+    if (path === '/config/values') return read('read config values');
+    return read();
+  }
+  if (m === 'POST') {
+    switch (path) {
+      case '/pause/pause':
+        return operator('pause');
+      case '/pause/resume':
+        return operator('resume');
+      case '/cancel':
+        return operator('cancel the running file');
+      case '/run-file':
+        return operator('run a file');
+      case '/run-command':
+        return supervisor('run a G-code command');
+      case '/config/values':
+        return supervisor('change the configuration');
+      case '/reload-server':
+        return supervisor('reload the server');
+      case '/allow-firmware-update':
+        return supervisor('allow a firmware update');
+    }
+  }
+  if (m === 'PUT' && path.startsWith('/uploads/')) return operator('upload a file');
+  if (m === 'DELETE' && path.startsWith('/uploads/')) return supervisor('delete a file');
+  return defaultDecision(req);
+};

@@ -1,0 +1,120 @@
+import { useEffect, useState } from 'react';
+import { useStore } from 'zustand';
+import type { TabProps } from '../../../fleet/contract';
+import { CommandButton } from '../../../fleet/react';
+import { Button, DataTable, formatBytes, Notice, Panel, ProgressBar } from '../../../ui';
+import type { PruntSession } from '../session';
+import './prunt.css';
+
+/** Files in `/uploads/`: list, upload with progress, download, run; and the update check. */
+export function FilesTab({ session }: TabProps<PruntSession>) {
+  const files = useStore(session.store, (s) => s.files);
+  const filesError = useStore(session.store, (s) => s.filesError);
+  const upload = useStore(session.store, (s) => s.upload);
+  const update = useStore(session.store, (s) => s.update);
+  const [picked, setPicked] = useState<File | null>(null);
+  const run = session.ctx.commands;
+  useEffect(() => {
+    void session.refreshFiles();
+  }, [session]);
+  return (
+    <div className="pr-grid" data-testid="prunt-files">
+      <Panel
+        title="Files"
+        actions={<Button onClick={() => void session.refreshFiles()}>Refresh</Button>}
+        className="pr-wide"
+      >
+        {filesError && <Notice tone="bad">{filesError}</Notice>}
+        <DataTable
+          rows={files ?? []}
+          rowKey={(f) => f}
+          empty={files === null ? 'Loading…' : 'No files uploaded.'}
+          columns={[
+            { key: 'name', label: 'File', render: (f) => <span className="mono">{f}</span> },
+            {
+              key: 'actions',
+              label: '',
+              align: 'right',
+              render: (f) => (
+                <span className="ui-row" style={{ justifyContent: 'flex-end' }}>
+                  <a className="ui-button" href={session.client.fileUrl(f)} download={f}>
+                    Download
+                  </a>
+                  <CommandButton
+                    runner={run}
+                    snapshot={session.ctx.snapshot}
+                    command={session.cmd.runFile}
+                    args={f}
+                    variant="primary"
+                    testId={`run-${f}`}
+                  >
+                    Run
+                  </CommandButton>
+                </span>
+              ),
+            },
+          ]}
+        />
+      </Panel>
+      <Panel title="Upload">
+        <div className="ui-row pr-upload">
+          <input
+            type="file"
+            className="ui-input"
+            accept=".gcode,.gco,.g,.nc,text/plain"
+            aria-label="File to upload"
+            onChange={(e) => setPicked(e.target.files?.[0] ?? null)}
+          />
+          {picked && (
+            <CommandButton
+              runner={run}
+              snapshot={session.ctx.snapshot}
+              command={session.cmd.upload}
+              args={{ name: picked.name, body: picked }}
+            >
+              Upload {picked.name} ({formatBytes(picked.size)})
+            </CommandButton>
+          )}
+        </div>
+        {upload && (
+          <div style={{ marginTop: 8 }}>
+            <ProgressBar
+              value={upload.total ? upload.loaded / upload.total : null}
+              label={`Uploading ${upload.name}`}
+            />
+            <p className="ui-muted">
+              {upload.error ? (
+                <span style={{ color: 'var(--bad)' }}>{upload.error}</span>
+              ) : upload.done ? (
+                `${upload.name} uploaded.`
+              ) : (
+                `${formatBytes(upload.loaded)} of ${formatBytes(upload.total)}`
+              )}
+            </p>
+          </div>
+        )}
+      </Panel>
+      <Panel
+        title="Software update"
+        actions={<Button onClick={() => void session.refreshUpdateCheck()}>Check result again</Button>}
+      >
+        {!update ? (
+          <p className="ui-muted">Not known yet.</p>
+        ) : update.error ? (
+          <Notice tone="warn" title="The last update check failed">
+            {update.error}
+          </Notice>
+        ) : update.result?.Available ? (
+          <Notice tone="info" title="An update is available">
+            <a href={update.result.URL} target="_blank" rel="noopener noreferrer">
+              {update.result.URL || 'no link given'}
+            </a>
+          </Notice>
+        ) : (
+          <p>No update available{update.result?.URL ? ` (${update.result.URL})` : ''}.</p>
+        )}
+        <p className="ui-muted">This shows the controller's last check; it does not start one.</p>
+      </Panel>
+    </div>
+  );
+}

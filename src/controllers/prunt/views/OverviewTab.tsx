@@ -1,0 +1,109 @@
+import { useStore } from 'zustand';
+import { CommandButton, useSnapshot } from '../../../fleet/react';
+import { Badge, formatDuration, formatNumber, KeyValues, Notice, Panel } from '../../../ui';
+import type { TabProps } from '../../../fleet/contract';
+import type { PruntSession } from '../session';
+import { RateSelect, StartupBanner, useWatchLive } from './common';
+import { LiveChart } from './LiveChart';
+import './prunt.css';
+
+export function OverviewTab({ session }: TabProps<PruntSession>) {
+  useWatchLive(session);
+  const snap = useSnapshot(session.ctx, (s) => ({
+    activity: s.activity,
+    label: s.activityLabel,
+    job: s.job,
+    positions: s.positions,
+    temperatures: s.temperatures,
+    link: s.link,
+  }));
+  const api = useStore(session.store, (s) => s.api);
+  const update = useStore(session.store, (s) => s.update);
+  const plug = useStore(session.store, (s) => s.smartPlug);
+  const run = session.ctx.commands;
+  const tone =
+    snap.activity === 'running'
+      ? 'ok'
+      : snap.activity === 'paused'
+        ? 'paused'
+        : snap.activity === 'alarm' || snap.activity === 'error'
+          ? 'bad'
+          : 'muted';
+  return (
+    <div className="pr-grid" data-testid="prunt-overview">
+      <StartupBanner session={session} />
+      <Panel title="Machine" actions={<RateSelect session={session} />}>
+        <div className="pr-state">
+          <Badge tone={tone} testId="prunt-activity">
+            {snap.label}
+          </Badge>
+          {api && (
+            <span className="ui-muted">
+              {api === 'module' ? 'Prunt module API' : 'Prunt flat API (2025 boards)'}
+            </span>
+          )}
+        </div>
+        {snap.job && (
+          <KeyValues
+            items={[
+              ['File', snap.job.name],
+              ['Running for', formatDuration(snap.job.elapsed)],
+              ['Progress', 'not reported by Prunt (line only)'],
+            ]}
+          />
+        )}
+        <div className="ui-row pr-controls">
+          <CommandButton
+            runner={run}
+            snapshot={session.ctx.snapshot}
+            command={session.cmd.pause}
+            args={undefined}
+          />
+          <CommandButton
+            runner={run}
+            snapshot={session.ctx.snapshot}
+            command={session.cmd.resume}
+            args={undefined}
+            variant="primary"
+          />
+          {api === 'module' && (
+            <CommandButton
+              runner={run}
+              snapshot={session.ctx.snapshot}
+              command={session.cmd.cancel}
+              args={undefined}
+            />
+          )}
+        </div>
+      </Panel>
+      <Panel title="Position">
+        <KeyValues items={Object.entries(snap.positions).map(([k, v]) => [k, formatNumber(v, 3, 'mm')])} />
+      </Panel>
+      <Panel title="Temperatures">
+        <KeyValues items={snap.temperatures.map((t) => [t.name, formatNumber(t.current, 1, '°C')])} />
+      </Panel>
+      {plug?.Enabled && (
+        <Panel title="Smart plug">
+          <KeyValues
+            items={[
+              ['Power', plug.Power],
+              ['Host', `${plug.Host}${plug.Provider ? ` (${plug.Provider})` : ''}`],
+              ['Watchdog', plug.Watchdog_Active ? `active, ${plug.Watchdog_Seconds} s` : 'off'],
+              ['Error', plug.Error || 'none'],
+            ]}
+          />
+        </Panel>
+      )}
+      {update?.result?.Available && (
+        <Notice tone="info" title="A software update is available">
+          <a href={update.result.URL} target="_blank" rel="noopener noreferrer">
+            {update.result.URL}
+          </a>
+        </Notice>
+      )}
+      <Panel title="Live chart" className="pr-wide">
+        <LiveChart session={session} />
+      </Panel>
+    </div>
+  );
+}
