@@ -136,3 +136,12 @@ describe('HttpClient error taxonomy', () => {
     expect(seen).toBe('xtool.pause');
   });
 });
+
+describe('HttpClient.blob', () => {
+  it('throws on an error status instead of returning the error page as an image', async () => {
+    server.use(http.get(`${base}/screenshot`, () => new HttpResponse('busy', { status: 503 })));
+    const e = await caught(new HttpClient({ machineId: 'm1' }).blob({ path: '/screenshot' }));
+    expect(e.kind).toBe('http');
+    expect(e.status).toBe(503);
+  });
+});

@@ -110,8 +110,18 @@ export class HttpClient {
     return parsed.data;
   }
 
+  /** Binary answer (images, downloads). Non-2xx answers throw like `raw`. */
   async blob(opts: RequestOptions): Promise<{ blob: Blob; headers: Headers }> {
     const res = await this.fetchResponse(opts);
+    if (!res.ok) {
+      const text = await res.text();
+      const body = parseJsonLenient(text);
+      const vendor = this.parseError?.(res.status, body === NOT_JSON ? null : body, text);
+      if (vendor) throw vendor;
+      throw new LinkError('http', `HTTP ${res.status} from ${opts.path}${text ? `: ${preview(text)}` : ''}`, {
+        status: res.status,
+      });
+    }
     return { blob: await res.blob(), headers: res.headers };
   }
 

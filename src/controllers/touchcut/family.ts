@@ -1,0 +1,40 @@
+import type { FamilyDescriptor, GatewayHints } from '../../fleet/contract';
+import { touchcutAccess } from './access';
+import { createTouchcutSimulator } from './sim/simulator';
+
+/**
+ * Node-safe descriptor of the Kinetic TouchCut family (no React, no views, no CSS: the gateway
+ * imports it).
+ *
+ * Gateway notes for the lead:
+ * - TouchCut serves HTTPS with its own self-signed certificate: accept it for TouchCut machines
+ *   only (`rejectUnauthorized: false` on this machine's agent), never globally.
+ * - The machine's `url` is the host; the client's paths already start with `/rest/v1/`.
+ */
+export const touchcutGateway: GatewayHints = {
+  /**
+   * Adds `X-TouchCut-API-Key` from the machine's apiKey when one is configured and the browser did
+   * not send `Authorization: Bearer` (a TouchCut user login: the manual says the JWT takes
+   * precedence, and a user's own privileges are what they logged in for). The key goes in a header
+   * only, never the query (queries end up in logs and error echoes). A key the browser tried to
+   * send itself is dropped: the browser never holds one.
+   */
+  injectSecrets(req, secrets) {
+    for (const k of Object.keys(req.headers))
+      if (k.toLowerCase() === 'x-touchcut-api-key') delete req.headers[k];
+    const bearer = Object.entries(req.headers).some(
+      ([k, v]) => k.toLowerCase() === 'authorization' && /^bearer\s+\S/i.test(v),
+    );
+    // Requests that take no key (a user login, machine-info) never carry it: least exposure.
+    const keyless = /^\/?rest\/v1\/(auth(\/.*)?|machine-info)\/?$/i.test(req.path);
+    if (secrets.apiKey && !bearer && !keyless) req.headers['X-TouchCut-API-Key'] = secrets.apiKey;
+  },
+};
+
+export const touchcutFamily: FamilyDescriptor = {
+  kind: 'touchcut',
+  label: 'Kinetic TouchCut',
+  access: touchcutAccess,
+  gateway: touchcutGateway,
+  createSimulator: createTouchcutSimulator,
+};

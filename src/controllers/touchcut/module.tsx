@@ -1,0 +1,30 @@
+import { defineController } from '../../fleet/contract';
+import { touchcutFamily } from './family';
+import { TouchcutSession } from './session';
+import { ProgramsView, UnloaderView } from './views/DataViews';
+import { LoginForm } from './views/LoginForm';
+import { MonitorView } from './views/MonitorView';
+import { ScreenThumbnail, ScreenView } from './views/ScreenView';
+import { StatsView } from './views/StatsView';
+import { StatusView } from './views/StatusView';
+import './views/touchcut.css';
+
+/**
+ * Kinetic TouchCut: status, monitor, production statistics, programs, unloader and the live
+ * screen. The REST API is read-only, so there are no machine controls here (only the TouchCut
+ * user's own password change).
+ */
+export const touchcutModule = defineController<TouchcutSession>({
+  ...touchcutFamily,
+  createSession: (ctx) => new TouchcutSession(ctx),
+  tabs: [
+    { id: 'status', label: 'Status', Component: StatusView },
+    { id: 'screen', label: 'Screen', Component: ScreenView },
+    { id: 'monitor', label: 'Monitor', Component: MonitorView },
+    { id: 'stats', label: 'Statistics', Component: StatsView },
+    { id: 'programs', label: 'Programs', Component: ProgramsView },
+    { id: 'unloader', label: 'Unloader', Component: UnloaderView },
+  ],
+  TileExtra: ScreenThumbnail,
+  LoginForm,
+});

@@ -1,0 +1,191 @@
+import { useEffect, useState, type ReactNode } from 'react';
+import { useStore } from 'zustand';
+import { Badge, Button } from '../../../ui';
+import { setTouchcutUnits, touchcutUnits } from '../session';
+import { downloadCsv, toCsv, type CsvColumn } from '../stats';
+import { UNITS_CHOICES, type UnitsChoice } from '../wire';
+
+export function useUnits(): UnitsChoice {
+  return useStore(touchcutUnits, (s) => s.units);
+}
+
+/** The per-user units choice (sent as `units`); values are shown in the unit the answer names. */
+export function UnitsPicker() {
+  const units = useUnits();
+  return (
+    <label className="tc-units">
+      <span className="ui-muted small">Units</span>
+      <select
+        className="ui-input"
+        value={units}
+        onChange={(e) => setTouchcutUnits(e.target.value as UnitsChoice)}
+        data-testid="touchcut-units"
+      >
+        {UNITS_CHOICES.map((u) => (
+          <option key={u} value={u}>
+            {u === 'default' ? 'TouchCut default' : u}
+          </option>
+        ))}
+      </select>
+    </label>
+  );
+}
+
+export function num(v: number | undefined | null, digits = 2): string {
+  if (v === undefined || v === null || !Number.isFinite(v)) return '—';
+  return v.toLocaleString('en-US', { maximumFractionDigits: digits, minimumFractionDigits: 0 });
+}
+
+export function YesNo(props: {
+  value: boolean | undefined;
+  yes?: string;
+  no?: string;
+  tone?: 'ok' | 'warn' | 'bad';
+}) {
+  if (props.value === undefined) return <span className="ui-muted">—</span>;
+  return (
+    <Badge tone={props.value ? (props.tone ?? 'ok') : 'muted'} plain>
+      {props.value ? (props.yes ?? 'yes') : (props.no ?? 'no')}
+    </Badge>
+  );
+}
+
+export function CsvButton<T>(props: { name: string; columns: readonly CsvColumn<T>[]; rows: readonly T[] }) {
+  return (
+    <Button
+      small
+      disabled={props.rows.length === 0}
+      onClick={() => downloadCsv(`${props.name}.csv`, toCsv(props.columns, props.rows))}
+      data-testid={`csv-${props.name.replace(/[^a-z0-9]+/gi, '-').toLowerCase()}`}
+    >
+      CSV
+    </Button>
+  );
+}
+
+/** An object URL for a blob, revoked when it changes or the component goes away. */
+export function useObjectUrl(blob: Blob | null): string | null {
+  const [url, setUrl] = useState<string | null>(null);
+  useEffect(() => {
+    if (!blob) {
+      setUrl(null);
+      return;
+    }
+    const u = URL.createObjectURL(blob);
+    setUrl(u);
+    return () => URL.revokeObjectURL(u);
+  }, [blob]);
+  return url;
+}
+
+export const READ_ONLY = (
+  <p className="ui-muted small" data-testid="touchcut-read-only">
+    TouchCut's REST API is read-only: the machine is started, stopped and set up at the machine. This console
+    only watches.
+  </p>
+);
+
+// ---------------------------------------------------------------------------------------------
+// generic data ("interface subject to change")
+
+function isRecord(v: unknown): v is Record<string, unknown> {
+  return !!v && typeof v === 'object' && !Array.isArray(v);
+}
+
+function scalar(v: unknown): ReactNode {
+  if (v === null || v === undefined) return <span className="ui-muted">—</span>;
+  if (typeof v === 'boolean') return v ? 'yes' : 'no';
+  // Integers as sent (ids, counts: no thousands separators); fractions rounded.
+  if (typeof v === 'number') return Number.isInteger(v) ? String(v) : num(v, 3);
+  if (typeof v === 'string') return v;
+  return null;
+}
+
+/**
+ * Renders whatever JSON came back as readable tables: arrays of objects become tables (columns =
+ * union of keys), objects become key/value lists, nested values fold into <details>. Text is
+ * rendered as text (React escapes it): nothing from the controller is ever HTML.
+ */
+export function DataTree(props: { value: unknown; depth?: number; label?: string }) {
+  const depth = props.depth ?? 0;
+  const v = props.value;
+  const s = scalar(v);
+  if (s !== null) return <>{s}</>;
+  if (depth > 6) return <code className="small">{JSON.stringify(v).slice(0, 200)}</code>;
+  if (Array.isArray(v)) {
+    if (v.length === 0) return <span className="ui-muted">(empty)</span>;
+    if (v.every(isRecord)) {
+      const cols = [...new Set(v.flatMap((r) => Object.keys(r)))].slice(0, 16);
+      return (
+        <div className="ui-table-wrap">
+          <table className="ui-table">
+            <thead>
+              <tr>
+                {cols.map((c) => (
+                  <th key={c} scope="col">
+                    {c}
+                  </th>
+                ))}
+              </tr>
+            </thead>
+            <tbody>
+              {v.map((row, i) => (
+                <tr key={i}>
+                  {cols.map((c) => (
+                    <td key={c}>
+                      <Nested value={row[c]} depth={depth + 1} label={c} />
+                    </td>
+                  ))}
+                </tr>
+              ))}
+            </tbody>
+          </table>
+        </div>
+      );
+    }
+    return (
+      <ul className="tc-list">
+        {v.map((x, i) => (
+          <li key={i}>
+            <Nested value={x} depth={depth + 1} label={`#${i + 1}`} />
+          </li>
+        ))}
+      </ul>
+    );
+  }
+  if (isRecord(v)) {
+    const entries = Object.entries(v);
+    if (entries.length === 0) return <span className="ui-muted">(empty)</span>;
+    return (
+      <dl className="ui-kv">
+        {entries.map(([k, x]) => (
+          <div key={k} style={{ display: 'contents' }}>
+            <dt>{k}</dt>
+            <dd>
+              <Nested value={x} depth={depth + 1} label={k} />
+            </dd>
+          </div>
+        ))}
+      </dl>
+    );
+  }
+  return <code>{String(v)}</code>;
+}
+
+function Nested(props: { value: unknown; depth: number; label: string }) {
+  const s = scalar(props.value);
+  if (s !== null) return <>{s}</>;
+  const size = Array.isArray(props.value)
+    ? `${props.value.length} items`
+    : `${Object.keys(props.value as object).length} fields`;
+  // The first level is shown open (the stations, the program list); deeper levels fold.
+  if (props.depth <= 1) return <DataTree value={props.value} depth={props.depth} />;
+  return (
+    <details>
+      <summary>
+        {props.label} ({size})
+      </summary>
+      <DataTree value={props.value} depth={props.depth} />
+    </details>
+  );
+}
