@@ -4,7 +4,7 @@ import { authStore } from '../fleet/auth';
 import { commandHistory } from '../fleet/commands';
 import { createRuntime, fleetStore, getRuntime, registerRuntime, allRuntimes } from '../fleet/fleet';
 import { MACHINE_KINDS, ROLES, type MachineInfo } from '../fleet/types';
-import { startDemo } from './demo';
+import { simulatorFor, startDemo } from './demo';
 
 const MachinesAnswer = z.object({
   machines: z.array(
@@ -15,6 +15,8 @@ const MachinesAnswer = z.object({
       simulated: z.boolean(),
     }),
   ),
+  /** True when the gateway serves its built-in demo fleet (no machines file). */
+  demo: z.boolean().optional(),
 });
 
 const SessionAnswer = z.object({
@@ -45,6 +47,7 @@ export async function loadSession(): Promise<void> {
 export async function boot(): Promise<void> {
   await loadSession();
   let machines: MachineInfo[];
+  let builtInDemo = false;
   try {
     const r = await fetch('/api/machines', { credentials: 'same-origin' });
     if (r.status === 401) {
@@ -56,6 +59,7 @@ export async function boot(): Promise<void> {
     if (!parsed.success)
       throw new Error(`the machine list is malformed: ${parsed.error.issues[0]?.message ?? ''}`);
     machines = parsed.data.machines;
+    builtInDemo = parsed.data.demo === true;
   } catch (e) {
     fleetStore.setState({
       status: 'error',
@@ -78,6 +82,16 @@ export async function boot(): Promise<void> {
       rt.session?.start();
     } catch (e) {
       rt.log.error('console', `session failed to start: ${e instanceof Error ? e.message : String(e)}`);
+    }
+  }
+  // The built-in demo fleet shows work in progress: each simulator's "demo" control (if it has
+  // one) starts a job, as an operator at the machine would.
+  if (builtInDemo) {
+    for (const m of machines) {
+      const demoControl = simulatorFor(m.id)
+        ?.controls()
+        .find((c) => c.id === 'demo');
+      if (demoControl) setTimeout(() => demoControl.run(), 1500);
     }
   }
   // Commands to simulated machines are answered in the page, so the gateway never sees them:
