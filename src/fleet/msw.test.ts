@@ -36,3 +36,14 @@ describe('simulatorHandlers', () => {
     sock.close();
   });
 });
+
+describe('simulatorHandlers at the root socket path', () => {
+  it('routes a socket opened at /machines/<id>/ (xTool listens at the root of :8081)', async () => {
+    const sock = new globalThis.WebSocket('ws://shopdeck.test/machines/m1/');
+    const first = await new Promise<string>((resolve) => {
+      sock.onmessage = (e) => resolve(String(e.data));
+    });
+    expect(first).toBe('hello /');
+    sock.close();
+  });
+});

@@ -23,7 +23,9 @@ export function simulatorHandlers(
       throw e;
     }
   });
-  const link = ws.link(`${wsUrlFor(base)}/*`);
+  // Matches the machine's root socket too (`/machines/<id>/`, xTool) — a `/*` pattern does not.
+  const escaped = wsUrlFor(base).replace(/[.*+?^${}()|[\]\\]/g, '\\$&');
+  const link = ws.link(new RegExp(`^${escaped}(/.*)?$`));
   const wsHandler = link.addEventListener('connection', ({ client }) => {
     const url = new URL(client.url);
     let closed = false;

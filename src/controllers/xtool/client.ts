@@ -1,0 +1,275 @@
+import { LinkError } from '../../fleet/errors';
+import type { z } from 'zod';
+import {
+  HttpClient,
+  parseJsonLenient,
+  uploadWithProgress,
+  type RawResponse,
+  type RequestOptions,
+  type UploadProgress,
+} from '../../fleet/http';
+import {
+  devNameSchema,
+  dotModeSchema,
+  laserPowerInfoSchema,
+  laserPowerTypeSchema,
+  listSchema,
+  macSchema,
+  machineTypeSchema,
+  offsetSchema,
+  parseXtoolError,
+  peripheryStatusSchema,
+  pingSchema,
+  progressSchema,
+  resultSchema,
+  upgradeReplySchema,
+  versionSchema,
+  workingStaSchema,
+} from './wire';
+
+/**
+ * Typed client for the xTool D-series HTTP API: one method per endpoint of the document. All
+ * requests go through one serialized HttpClient: the laser is an ESP32 that must never see two
+ * requests at once. Methods that change the machine take `commandId` (→ X-Shopdeck-Command).
+ */
+
+/** Upload targets of POST /upload: filetype 0 → /frame.gcode, 1 → /tmp.gcode, or a full path. */
+export type UploadTarget = { kind: 'job' } | { kind: 'frame' } | { kind: 'path'; filename: string };
+
+export function uploadPath(t: UploadTarget): string {
+  return t.kind === 'job' ? '/tmp.gcode' : t.kind === 'frame' ? '/frame.gcode' : t.filename;
+}
+
+export type SwitchAction = 'setLimitStopSwitch' | 'setTiltStopSwitch' | 'setMovingStopSwitch';
+export type ThresholdAction = 'setTiltCheckThreshold' | 'setMovingCheckThreshold';
+
+/** The query parameter each set* action takes (document, "GET /system"). */
+export const SYSTEM_PARAM: Record<
+  SwitchAction | ThresholdAction | 'setFlameAlarmMode' | 'setFlameAlarmSensitivity',
+  string
+> = {
+  setLimitStopSwitch: 'limitStopSwitch',
+  setTiltStopSwitch: 'tiltStopSwitch',
+  setMovingStopSwitch: 'movingStopSwitch',
+  setTiltCheckThreshold: 'tiltCheckThreshold',
+  setMovingCheckThreshold: 'movingCheckThreshold',
+  setFlameAlarmMode: 'flameAlarmMode',
+  setFlameAlarmSensitivity: 'flameAlarmSensitivity',
+};
+
+export class XtoolClient {
+  readonly http: HttpClient;
+
+  constructor(machineId: string, opts: { timeoutMs?: number } = {}) {
+    this.http = new HttpClient({
+      machineId,
+      timeoutMs: opts.timeoutMs ?? 5000,
+      parseError: parseXtoolError,
+    });
+  }
+
+  // --- reads --------------------------------------------------------------------------------
+
+  ping() {
+    return this.json({ path: '/ping' }, pingSchema);
+  }
+  progress() {
+    return this.json({ path: '/progress' }, progressSchema);
+  }
+  machineType() {
+    return this.json({ path: '/getmachinetype' }, machineTypeSchema);
+  }
+  laserPowerType() {
+    return this.json({ path: '/getlaserpowertype' }, laserPowerTypeSchema);
+  }
+  laserPowerInfo() {
+    return this.json({ path: '/getlaserpowerinfo' }, laserPowerInfoSchema);
+  }
+  peripheryStatus() {
+    return this.json({ path: '/peripherystatus' }, peripheryStatusSchema);
+  }
+  mac() {
+    return this.system('mac', macSchema);
+  }
+  version() {
+    return this.system('version', versionSchema);
+  }
+  workingSta() {
+    return this.system('get_working_sta', workingStaSchema);
+  }
+  offset() {
+    return this.system('offset', offsetSchema);
+  }
+  dotMode() {
+    return this.system('dotMode', dotModeSchema);
+  }
+  deviceName() {
+    return this.system('get_dev_name', devNameSchema);
+  }
+  list(dir?: string) {
+    return this.json({ path: '/list', query: { dir } }, listSchema);
+  }
+
+  /** Raw answer of any path, for telling other xTool models apart (never throws on vendor words). */
+  async probe(path: string): Promise<string> {
+    try {
+      const r = await this.lane(() => this.http.raw({ path }));
+      return `${path} → ${r.status}: ${r.text.trim().slice(0, 300)}`;
+    } catch (e) {
+      if (e instanceof LinkError && (e.kind === 'http' || e.kind === 'vendor'))
+        return `${path} → ${e.message}`;
+      throw e;
+    }
+  }
+
+  // --- settings (GET /system?action=set…) -----------------------------------------------------
+
+  setDeviceName(name: string, commandId: string) {
+    return this.json({ path: '/system', query: { action: 'set_dev_name', name }, commandId }, resultSchema);
+  }
+
+  setSystem(action: keyof typeof SYSTEM_PARAM, value: number, commandId: string) {
+    return this.json(
+      { path: '/system', query: { action, [SYSTEM_PARAM[action]]: value }, commandId },
+      resultSchema,
+    );
+  }
+
+  // --- job control ----------------------------------------------------------------------------
+
+  /** GET /cnc/data?action=pause|resume|stop → ok, or fail when the state does not allow it. */
+  jobAction(action: 'pause' | 'resume' | 'stop', commandId: string) {
+    return this.json({ path: '/cnc/data', query: { action }, commandId }, resultSchema);
+  }
+
+  /** GET /read?file= — runs the file immediately: fires the laser. */
+  runFile(file: string, commandId: string) {
+    return this.json({ path: '/read', query: { file }, commandId }, resultSchema);
+  }
+
+  deleteFile(file: string, commandId: string) {
+    return this.json({ path: '/delete', query: { file }, commandId }, resultSchema);
+  }
+
+  /** One line with GET /cmd?cmd=, several with POST /cmd (plain text body). */
+  gcode(code: string, commandId: string) {
+    const lines = code
+      .split(/\r?\n/)
+      .map((l) => l.trim())
+      .filter((l) => l !== '');
+    if (lines.length <= 1) {
+      return this.json({ path: '/cmd', query: { cmd: lines[0] ?? '' }, commandId }, resultSchema);
+    }
+    return this.json(
+      {
+        method: 'POST',
+        path: '/cmd',
+        body: lines.join('\n') + '\n',
+        headers: { 'Content-Type': 'text/plain' },
+        commandId,
+      },
+      resultSchema,
+    );
+  }
+
+  // --- uploads --------------------------------------------------------------------------------
+
+  /**
+   * POST /upload (multipart `file`). The laser answers "ok" even when the upload failed, so the
+   * caller verifies with /list afterwards (XtoolSession.upload does).
+   */
+  async upload(
+    file: Blob,
+    target: UploadTarget,
+    commandId: string,
+    onProgress?: (p: UploadProgress) => void,
+  ): Promise<string> {
+    const query: Record<string, string | number> =
+      target.kind === 'path' ? { filename: target.filename } : { filetype: target.kind === 'frame' ? 0 : 1 };
+    const name = uploadPath(target).split('/').pop() || 'tmp.gcode';
+    const res = await this.postMultipart('/upload', query, file, name, commandId, onProgress, 120_000);
+    const body = parseJsonLenient(res.text);
+    const vendor = parseXtoolError(res.status, body, res.text);
+    if (vendor) throw vendor;
+    const parsed = resultSchema.safeParse(body);
+    if (!parsed.success)
+      throw new LinkError('protocol', `Unexpected answer from /upload: ${res.text.slice(0, 80)}`);
+    return parsed.data.result;
+  }
+
+  /** POST /upgrade (multipart `file`) → "OK" or "FAIL" as plain text. */
+  async upgrade(file: Blob, name: string, commandId: string, onProgress?: (p: UploadProgress) => void) {
+    const res = await this.postMultipart('/upgrade', {}, file, name, commandId, onProgress, 300_000);
+    const parsed = upgradeReplySchema.safeParse(res.text);
+    if (!parsed.success) {
+      throw new LinkError('protocol', `Unexpected answer from /upgrade: "${res.text.trim().slice(0, 80)}"`, {
+        path: '(root)',
+      });
+    }
+    return parsed.data;
+  }
+
+  /**
+   * Multipart POST with upload progress through XMLHttpRequest where there is one (browser);
+   * plain fetch elsewhere (Node tests). Runs in the lane like every other request.
+   */
+  private postMultipart(
+    path: string,
+    query: Record<string, string | number>,
+    file: Blob,
+    filename: string,
+    commandId: string,
+    onProgress: ((p: UploadProgress) => void) | undefined,
+    timeoutMs: number,
+  ): Promise<RawResponse> {
+    const form = new FormData();
+    form.append('file', file, filename);
+    return this.lane(async () => {
+      if (typeof globalThis.XMLHttpRequest === 'undefined') {
+        const r = await this.http.raw({ method: 'POST', path, query, body: form, commandId, timeoutMs });
+        onProgress?.({ loaded: file.size, total: file.size });
+        return r;
+      }
+      return uploadWithProgress({
+        method: 'POST',
+        url: this.http.url(path, query),
+        body: form,
+        headers: { 'X-Shopdeck-Command': commandId },
+        onProgress,
+        timeoutMs,
+      });
+    });
+  }
+
+  /**
+   * One request at a time to the laser (an ESP32). HttpClient's own `serial` option covers only
+   * its fetches, not XHR uploads, so the client keeps its own lane around both.
+   */
+  private tail: Promise<unknown> = Promise.resolve();
+  /** Requests started and not finished (at most 1), for tests. */
+  inFlight = 0;
+  maxInFlight = 0;
+
+  private lane<T>(run: () => Promise<T>): Promise<T> {
+    const go = async () => {
+      this.inFlight++;
+      this.maxInFlight = Math.max(this.maxInFlight, this.inFlight);
+      try {
+        return await run();
+      } finally {
+        this.inFlight--;
+      }
+    };
+    const next = this.tail.then(go, go);
+    this.tail = next.catch(() => undefined);
+    return next;
+  }
+
+  private json<S extends z.ZodType>(opts: RequestOptions, schema: S): Promise<z.output<S>> {
+    return this.lane(() => this.http.json(opts, schema));
+  }
+
+  private system<S extends z.ZodType>(action: string, schema: S): Promise<z.output<S>> {
+    return this.json({ path: '/system', query: { action } }, schema);
+  }
+}

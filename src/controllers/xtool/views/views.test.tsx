@@ -1,0 +1,124 @@
+// @vitest-environment happy-dom
+import { act, cleanup, fireEvent, render, screen } from '@testing-library/react';
+import { afterEach, beforeEach, describe, expect, it } from 'vitest';
+import { authStore } from '../../../fleet/auth';
+import { createContext } from '../../../fleet/fleet';
+import { alwaysVisible } from '../../../fleet/link';
+import type { Role } from '../../../fleet/types';
+import { XtoolSession } from '../session';
+import { Discover } from './Discover';
+import { Overview } from './Overview';
+import { Safety } from './Safety';
+
+/** A session that is never started: the tests feed it frames and state directly (no network). */
+function online(role: Role) {
+  authStore.setState({ mode: 'secured', user: { name: 't', role, machines: null } });
+  const ctx = createContext(
+    { id: 'v1', name: 'Laser', kind: 'xtool', simulated: true },
+    { visibility: alwaysVisible, principal: () => ({ name: 't', role }) },
+  );
+  const session = new XtoolSession(ctx);
+  ctx.snapshot.setState({ link: 'online' });
+  session.detail.setState({ model: { family: 'd-series', answered: [] } });
+  return { ctx, session };
+}
+
+beforeEach(() => authStore.setState({ mode: 'unknown', user: null }));
+afterEach(() => cleanup());
+
+describe('Overview', () => {
+  it('shows the loaded job plainly and enables only what makes sense', () => {
+    const { session } = online('operator');
+    render(<Overview session={session} />);
+    act(() => session.onFrame('ok:WORKING_ONLINE_READY\n'));
+    expect(screen.getByTestId('xtool-press-button').textContent).toMatch(/button on the machine/);
+    expect((screen.getByTestId('cmd-xtool.pause') as HTMLButtonElement).disabled).toBe(true);
+    expect((screen.getByTestId('cmd-xtool.stop') as HTMLButtonElement).disabled).toBe(false);
+
+    act(() => session.onFrame('ok:WORKING_ONLINE\n'));
+    expect(screen.getByTestId('xtool-state').textContent).toBe('running');
+    expect((screen.getByTestId('cmd-xtool.pause') as HTMLButtonElement).disabled).toBe(false);
+    expect((screen.getByTestId('cmd-xtool.resume') as HTMLButtonElement).disabled).toBe(true);
+
+    fireEvent.click(screen.getByTestId('cmd-xtool.stop'));
+    expect(screen.getByTestId('confirm-dialog').textContent).toMatch(/Stop the job\?/);
+  });
+
+  it('a viewer sees the state but cannot pause', () => {
+    const { session } = online('viewer');
+    render(<Overview session={session} />);
+    act(() => session.onFrame('ok:WORKING_OFFLINE\n'));
+    const pause = screen.getByTestId('cmd-xtool.pause') as HTMLButtonElement;
+    expect(pause.disabled).toBe(true);
+    expect(pause.title).toMatch(/operator/);
+  });
+
+  it('says "unsupported model" with what the device answered', () => {
+    const { session } = online('viewer');
+    session.detail.setState({
+      model: { family: 'unsupported', answered: ['/getmachinetype → type "xTool S1"'] },
+    });
+    render(<Overview session={session} />);
+    expect(screen.getByTestId('xtool-unsupported').textContent).toMatch(/xTool S1/);
+  });
+});
+
+describe('Safety', () => {
+  it('warns when a sensor is off and confirms turning the flame alarm off', () => {
+    const { session } = online('supervisor');
+    session.detail.setState({
+      periphery: {
+        result: 'ok',
+        tiltStopFlag: false,
+        limitStopFlag: true,
+        movingStopFlag: true,
+        flameAlarmSensitivity: 1,
+      },
+    });
+    render(<Safety session={session} />);
+    expect(screen.getByTestId('xtool-safety-off')).toBeTruthy();
+    fireEvent.click(screen.getByTestId('cmd-xtool.flame-alarm-off'));
+    expect(screen.getByTestId('confirm-dialog').textContent).toMatch(/catches fire/);
+  });
+
+  it('an operator cannot change safety settings', () => {
+    const { session } = online('operator');
+    session.detail.setState({ periphery: { result: 'ok', tiltStopFlag: true, flameAlarmSensitivity: 1 } });
+    render(<Safety session={session} />);
+    expect((screen.getByTestId('cmd-xtool.tilt-stop-off') as HTMLButtonElement).disabled).toBe(true);
+    expect((screen.getByTestId('cmd-xtool.flame-alarm-off') as HTMLButtonElement).disabled).toBe(true);
+  });
+});
+
+describe('Discover', () => {
+  it('lists the lasers that answered and the machines-file entries to add', async () => {
+    const answer = {
+      replies: [{ requestId: 1, ip: '127.0.0.1', name: 'xTool D1 Pro', version: '40.31.006.01', via: 'udp' }],
+      broadcast: '127.0.0.1',
+    };
+    const real = globalThis.fetch;
+    const urls: string[] = [];
+    globalThis.fetch = (input: RequestInfo | URL) => {
+      urls.push(String(input));
+      return Promise.resolve(new Response(JSON.stringify(answer)));
+    };
+    try {
+      render(<Discover />);
+      await act(async () => {
+        fireEvent.click(screen.getByTestId('xtool-discover-search'));
+        await Promise.resolve();
+      });
+      await screen.findByTestId('xtool-discover-table');
+      expect(urls[0]).toMatch(/\/api\/discover\/xtool$/);
+      expect(screen.getByTestId('xtool-discover-table').textContent).toMatch(/127\.0\.0\.1/);
+      expect(JSON.parse(screen.getByTestId('xtool-discover-entries').textContent ?? '')).toEqual({
+        id: 'xtool-d1-pro',
+        name: 'xTool D1 Pro',
+        kind: 'xtool',
+        url: 'http://127.0.0.1:8080',
+      });
+    } finally {
+      globalThis.fetch = real;
+    }
+  });
+});

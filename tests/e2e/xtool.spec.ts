@@ -1,0 +1,96 @@
+import { expect, test, type Page } from '@playwright/test';
+
+/**
+ * xTool D-series on the tablet layout, against the simulated laser `demo-xtool` (msw in the page).
+ * The simulator's developer panel stands in for the physical world: loading a job as the vendor
+ * app would, the machine's button, a flame under the laser.
+ */
+
+const ID = 'demo-xtool';
+
+/** Act as an operator: the console asks the gateway who we are (`/api/session`). */
+async function asOperator(page: Page): Promise<void> {
+  await page.route('**/api/session', (route) =>
+    route.fulfill({
+      contentType: 'application/json',
+      body: JSON.stringify({ mode: 'secured', user: { name: 'olga', role: 'operator', machines: null } }),
+    }),
+  );
+}
+
+async function simControl(page: Page, control: string): Promise<void> {
+  await page.getByTestId('tab-simulator').click();
+  await page.getByTestId(`sim-control-${control}`).click();
+}
+
+test.describe('xTool D-series', () => {
+  test.beforeEach(({}, info) => {
+    test.skip(info.project.name !== 'tablet', 'tablet layout only');
+  });
+
+  test('an operator pauses and resumes a simulated job', async ({ page }) => {
+    await asOperator(page);
+    await page.goto(`/m/${ID}`);
+    await expect(page.getByTestId('machine-link')).toHaveText('Online');
+    // Operators see job controls but not the supervisor tabs.
+    await expect(page.getByTestId('tab-console')).toHaveCount(0);
+    await expect(page.getByTestId('tab-firmware')).toHaveCount(0);
+
+    await simControl(page, 'load-job');
+    await page.getByTestId('tab-overview').click();
+    await expect(page.getByTestId('xtool-press-button')).toBeVisible();
+    await expect(page.getByTestId('machine-label')).toContainText('press the button on the machine');
+
+    await simControl(page, 'button');
+    await page.getByTestId('tab-overview').click();
+    await expect(page.getByTestId('xtool-state')).toHaveText('running');
+
+    // Pause: no confirmation, a big touch target.
+    const pause = page.getByTestId('cmd-xtool.pause');
+    await expect(pause).toBeEnabled();
+    const box = await pause.boundingBox();
+    expect(box?.height ?? 0).toBeGreaterThanOrEqual(44);
+    await pause.tap();
+    await expect(page.getByTestId('xtool-state')).toHaveText('paused');
+
+    // Resume asks first.
+    await page.getByTestId('cmd-xtool.resume').tap();
+    await expect(page.getByTestId('confirm-dialog')).toContainText('Resume the job?');
+    await page.getByTestId('confirm-yes').tap();
+    await expect(page.getByTestId('xtool-state')).toHaveText('running');
+    await expect(page.getByTestId('cmd-xtool.pause')).toBeEnabled();
+  });
+
+  test('a flame alarm blocks every page until acknowledged', async ({ page }) => {
+    await page.goto(`/m/${ID}/simulator`);
+    await expect(page.getByTestId('machine-link')).toHaveText('Online');
+    await page.getByTestId('sim-control-flame').click();
+    const alarm = page.getByTestId('blocking-alarm');
+    await expect(alarm).toBeVisible();
+    await expect(alarm).toContainText('FLAME DETECTED');
+
+    // Another page of the console (in-app navigation: a reload would restart the simulators).
+    await page.evaluate(() => {
+      history.pushState(null, '', '/');
+      window.dispatchEvent(new PopStateEvent('popstate'));
+    });
+    await expect(page).toHaveURL(/\/$/);
+    await expect(alarm).toBeVisible();
+    // The rest of the page is blocked: clicks land on the overlay, not the tiles.
+    await expect(page.getByTestId('tile-demo-duet')).toBeVisible();
+    await page
+      .getByTestId('tile-demo-duet')
+      .click({ trial: true, timeout: 2000 })
+      .then(
+        () => {
+          throw new Error('the fleet was clickable under a blocking alarm');
+        },
+        () => undefined,
+      );
+
+    await page.getByTestId(`ack-${ID}`).click();
+    await expect(alarm).toBeHidden();
+    await page.getByTestId('tile-demo-duet').click();
+    await expect(page).toHaveURL(/\/m\/demo-duet$/);
+  });
+});
