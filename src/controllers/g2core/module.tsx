@@ -1,0 +1,24 @@
+import { defineController } from '../../fleet/contract';
+import { g2coreFamily } from './family';
+import { G2coreSession } from './session';
+import { ConsoleTab } from './views/Console';
+import './views/g2core.css';
+import { JobsTab } from './views/Jobs';
+import { JogTab } from './views/Jog';
+import { OverviewTab } from './views/Overview';
+import { SettingsTab } from './views/Settings';
+import { G2coreTile } from './views/Tile';
+
+/** The g2core controller module: session, tabs. The machine page adds Log and Simulator tabs. */
+export const g2coreModule = defineController<G2coreSession>({
+  ...g2coreFamily,
+  createSession: (ctx) => new G2coreSession(ctx),
+  tabs: [
+    { id: 'overview', label: 'Machine', Component: OverviewTab },
+    { id: 'jog', label: 'Jog & home', Component: JogTab, role: 'operator' },
+    { id: 'jobs', label: 'Jobs', Component: JobsTab },
+    { id: 'console', label: 'Console', Component: ConsoleTab, role: 'supervisor' },
+    { id: 'settings', label: 'Settings', Component: SettingsTab, role: 'supervisor' },
+  ],
+  TileExtra: G2coreTile,
+});

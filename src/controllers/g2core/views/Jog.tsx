@@ -1,0 +1,124 @@
+import { useState } from 'react';
+import { CommandButton, useStoreSelect } from '../../../fleet/react';
+import { Button, Panel } from '../../../ui';
+import type { AxisLetter, G2coreSession } from '../session';
+import { Alarms, Dro, StatBadge } from './common';
+
+const STEPS_MM = [0.1, 1, 10, 50];
+const STEPS_IN = [0.001, 0.01, 0.1, 1];
+const FEEDS_MM = [100, 500, 1000, 3000];
+const FEEDS_IN = [5, 20, 50, 100];
+
+/** Jog (relative moves at a chosen step and feed), homing, and a big stop. */
+export function JogTab({ session }: { session: G2coreSession }) {
+  const { axes, inches } = useStoreSelect(session.detail, (d) => ({ axes: d.axes, inches: d.sr.unit === 0 }));
+  const steps = inches ? STEPS_IN : STEPS_MM;
+  const feeds = inches ? FEEDS_IN : FEEDS_MM;
+  const [stepIdx, setStepIdx] = useState(1);
+  const [feedIdx, setFeedIdx] = useState(2);
+  const step = steps[stepIdx] ?? steps[0]!;
+  const feed = feeds[feedIdx] ?? feeds[0]!;
+  const unit = inches ? 'in' : 'mm';
+  const { commands: runner, snapshot } = session.ctx;
+  return (
+    <div
+      className="ui-grid"
+      style={{ gridTemplateColumns: 'repeat(auto-fit, minmax(min(100%, 420px), 1fr))' }}
+    >
+      <Panel title="Position" actions={<StatBadge session={session} />}>
+        <Alarms session={session} />
+        <Dro session={session} compact />
+        <div style={{ marginTop: 16, display: 'flex', justifyContent: 'center' }}>
+          <CommandButton
+            runner={runner}
+            snapshot={snapshot}
+            command={session.stopJog}
+            args={undefined}
+            variant="danger"
+            testId="g2-bigstop"
+          >
+            <span className="g2-bigstop">STOP</span>
+          </CommandButton>
+        </div>
+      </Panel>
+      <Panel title="Jog" testId="g2-jog">
+        <div className="ui-muted" style={{ marginBottom: 6 }}>
+          Step ({unit})
+        </div>
+        <div className="g2-choices" role="group" aria-label="Jog step">
+          {steps.map((s, i) => (
+            <Button
+              key={s}
+              aria-pressed={i === stepIdx}
+              onClick={() => setStepIdx(i)}
+              data-testid={`g2-step-${s}`}
+            >
+              {s}
+            </Button>
+          ))}
+        </div>
+        <div className="ui-muted" style={{ margin: '10px 0 6px' }}>
+          Feed ({unit}/min)
+        </div>
+        <div className="g2-choices" role="group" aria-label="Jog feed">
+          {feeds.map((f, i) => (
+            <Button key={f} aria-pressed={i === feedIdx} onClick={() => setFeedIdx(i)}>
+              {f}
+            </Button>
+          ))}
+        </div>
+        <div className="g2-jog" style={{ marginTop: 12 }}>
+          {axes.map((a: AxisLetter) => (
+            <div className="row" key={a}>
+              <span className="label">{a.toUpperCase()}</span>
+              <CommandButton
+                runner={runner}
+                snapshot={snapshot}
+                command={session.jog}
+                args={{ axis: a, distance: -step, feed }}
+                testId={`g2-jog-${a}-minus`}
+              >
+                {`${a.toUpperCase()}−`}
+              </CommandButton>
+              <CommandButton
+                runner={runner}
+                snapshot={snapshot}
+                command={session.jog}
+                args={{ axis: a, distance: step, feed }}
+                testId={`g2-jog-${a}-plus`}
+              >
+                {`${a.toUpperCase()}+`}
+              </CommandButton>
+            </div>
+          ))}
+        </div>
+      </Panel>
+      <Panel title="Home (G28.2)">
+        <p className="ui-muted">Homing moves each axis to its switch; the machine must be idle.</p>
+        <div className="g2-choices">
+          <CommandButton
+            runner={runner}
+            snapshot={snapshot}
+            command={session.home}
+            args={{ axes }}
+            testId="g2-home-all"
+          >
+            Home all
+          </CommandButton>
+          {axes.map((a) => (
+            <CommandButton
+              key={a}
+              runner={runner}
+              snapshot={snapshot}
+              command={session.home}
+              args={{ axes: [a] }}
+              testId={`g2-home-${a}`}
+            >
+              {`Home ${a.toUpperCase()}`}
+            </CommandButton>
+          ))}
+        </div>
+      </Panel>
+    </div>
+  );
+}
