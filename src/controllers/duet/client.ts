@@ -1,0 +1,269 @@
+import { LinkError } from '../../fleet/errors';
+import {
+  HttpClient,
+  preview,
+  uploadWithProgress,
+  type RawResponse,
+  type UploadProgress,
+} from '../../fleet/http';
+import {
+  connectResponse,
+  directoryListing,
+  objectModelSchema,
+  parsedFileInfoSchema,
+  type DirEntry,
+  type ObjectModel,
+  type ParsedFileInfo,
+} from './wire';
+
+/**
+ * Typed client of the DSF REST API (`duet-dsf-rest-api.txt`), one method per endpoint, on the
+ * console's `HttpClient` (`/machines/<id>/machine/...`). The session key from `connect` is sent
+ * as `X-Session-Key` on every request.
+ *
+ * File paths are whole RRF paths ("0:/gcodes/a b.gcode") and go into the URL as ONE
+ * percent-encoded segment, as Duet Web Control does (`encodeURIComponent(filename)`).
+ */
+
+/** DSF answers errors as plain text (an exception message) or nothing. */
+export function parseDuetError(status: number, _body: unknown, text: string): LinkError | null {
+  if (status < 400) return null;
+  const message = text.trim();
+  if (status === 401 || status === 403) {
+    return new LinkError(
+      'http',
+      `HTTP ${status}: session expired or password wrong${message ? ` (${preview(message)})` : ''}`,
+      {
+        status,
+      },
+    );
+  }
+  if (status === 502)
+    return new LinkError('vendor', 'Incompatible DCS version (502)', {
+      status,
+      vendorMessage: message || null,
+    });
+  if (status === 503)
+    return new LinkError('vendor', 'DCS is unavailable (503): the Duet service is down', {
+      status,
+      vendorMessage: message || null,
+    });
+  if (message)
+    return new LinkError('vendor', `HTTP ${status}: ${preview(message, 200)}`, {
+      status,
+      vendorMessage: message,
+    });
+  return null;
+}
+
+export function isAuthError(e: unknown): boolean {
+  return e instanceof LinkError && (e.status === 401 || e.status === 403);
+}
+
+export function encodePath(path: string): string {
+  return encodeURIComponent(path);
+}
+
+export interface CodeOptions {
+  async?: boolean;
+  commandId?: string;
+  timeoutMs?: number;
+}
+
+export class DuetClient {
+  readonly http: HttpClient;
+  sessionKey: string | null = null;
+
+  constructor(machineId: string) {
+    this.http = new HttpClient({
+      machineId,
+      timeoutMs: 10_000,
+      parseError: parseDuetError,
+      headers: (): Record<string, string> => (this.sessionKey ? { 'X-Session-Key': this.sessionKey } : {}),
+    });
+  }
+
+  /** `GET /machine/connect?password=` — the gateway replaces the password when one is configured. */
+  async connect(password?: string): Promise<string | null> {
+    const r = await this.http.json({ path: '/machine/connect', query: { password } }, connectResponse);
+    this.sessionKey = r.sessionKey;
+    return r.sessionKey;
+  }
+
+  async noop(): Promise<void> {
+    await this.http.raw({ path: '/machine/noop', timeoutMs: 5000 });
+  }
+
+  async disconnect(): Promise<void> {
+    try {
+      await this.http.raw({ path: '/machine/disconnect', timeoutMs: 3000 });
+    } finally {
+      this.sessionKey = null;
+    }
+  }
+
+  /** Socket URL (same origin), with the session key as the document says. */
+  socketUrl(): string {
+    return this.http.url('/machine', { sessionKey: this.sessionKey ?? undefined });
+  }
+
+  /** `GET /machine/status`: the full object model. */
+  status(): Promise<ObjectModel> {
+    return this.http.json({ path: '/machine/status' }, objectModelSchema);
+  }
+
+  /** `POST /machine/code` — plain-text body; the reply is plain text ("" when there is none). */
+  async code(code: string, opts: CodeOptions = {}): Promise<string> {
+    const r = await this.http.raw({
+      method: 'POST',
+      path: '/machine/code',
+      query: opts.async ? { async: 'true' } : undefined,
+      headers: { 'Content-Type': 'text/plain' },
+      body: code,
+      commandId: opts.commandId,
+      // Codes may run long (homing, heating with M116): DSF answers when they are done.
+      timeoutMs: opts.timeoutMs ?? (opts.async ? 10_000 : 120_000),
+    });
+    return r.text;
+  }
+
+  async download(path: string, signal?: AbortSignal): Promise<Blob> {
+    const r = await this.http.blob({ path: `/machine/file/${encodePath(path)}`, timeoutMs: 60_000, signal });
+    return r.blob;
+  }
+
+  /** Download as text (height map, macros); non-2xx throws. */
+  async readText(path: string): Promise<string> {
+    const r = await this.http.raw({ path: `/machine/file/${encodePath(path)}`, timeoutMs: 30_000 });
+    return r.text;
+  }
+
+  fileUrl(path: string): string {
+    return this.http.url(`/machine/file/${encodePath(path)}`);
+  }
+
+  /** `PUT /machine/file/{path}?timeModified=<ISO>` with upload progress; 201 when created. */
+  upload(
+    path: string,
+    body: Blob | ArrayBuffer | string,
+    opts: {
+      timeModified?: Date;
+      onProgress?: (p: UploadProgress) => void;
+      signal?: AbortSignal;
+      commandId?: string;
+    } = {},
+  ): Promise<RawResponse> {
+    const headers: Record<string, string> = { 'Content-Type': 'application/octet-stream' };
+    if (this.sessionKey) headers['X-Session-Key'] = this.sessionKey;
+    if (opts.commandId) headers['X-Shopdeck-Command'] = opts.commandId;
+    return uploadWithProgress({
+      method: 'PUT',
+      url: this.http.url(`/machine/file/${encodePath(path)}`, {
+        timeModified: opts.timeModified ? opts.timeModified.toISOString() : undefined,
+      }),
+      body,
+      headers,
+      onProgress: opts.onProgress,
+      signal: opts.signal,
+      timeoutMs: 600_000,
+    });
+  }
+
+  /** `GET /machine/fileinfo/{path}?readThumbnailContent=true` */
+  fileInfo(path: string, thumbnails = true): Promise<ParsedFileInfo> {
+    return this.http.json(
+      {
+        path: `/machine/fileinfo/${encodePath(path)}`,
+        query: { readThumbnailContent: thumbnails ? 'true' : undefined },
+      },
+      parsedFileInfoSchema,
+    );
+  }
+
+  async deleteFile(path: string, opts: { recursive?: boolean; commandId?: string } = {}): Promise<void> {
+    await this.http.raw({
+      method: 'DELETE',
+      path: `/machine/file/${encodePath(path)}`,
+      query: { recursive: opts.recursive ? 'true' : undefined },
+      commandId: opts.commandId,
+    });
+  }
+
+  /** `POST /machine/file/move` as a form. 409: the target exists — ask, then resend with force. */
+  async move(from: string, to: string, opts: { force?: boolean; commandId?: string } = {}): Promise<void> {
+    const form = new URLSearchParams({ from, to });
+    if (opts.force) form.set('force', 'true');
+    await this.http.raw({
+      method: 'POST',
+      path: '/machine/file/move',
+      headers: { 'Content-Type': 'application/x-www-form-urlencoded' },
+      body: form.toString(),
+      commandId: opts.commandId,
+    });
+  }
+
+  listDirectory(dir: string): Promise<DirEntry[]> {
+    return this.http.json({ path: `/machine/directory/${encodePath(dir)}` }, directoryListing);
+  }
+
+  async makeDirectory(dir: string, commandId?: string): Promise<void> {
+    await this.http.raw({ method: 'PUT', path: `/machine/directory/${encodePath(dir)}`, commandId });
+  }
+
+  async installPlugin(zip: Blob | ArrayBuffer, commandId?: string): Promise<void> {
+    await this.http.raw({
+      method: 'PUT',
+      path: '/machine/plugin',
+      headers: { 'Content-Type': 'application/octet-stream' },
+      body: zip,
+      commandId,
+      timeoutMs: 300_000,
+    });
+  }
+
+  async uninstallPlugin(name: string, commandId?: string): Promise<void> {
+    await this.http.raw({
+      method: 'DELETE',
+      path: '/machine/plugin',
+      headers: { 'Content-Type': 'text/plain' },
+      body: name,
+      commandId,
+    });
+  }
+
+  async startPlugin(name: string, commandId?: string): Promise<void> {
+    await this.http.raw({
+      method: 'POST',
+      path: '/machine/startPlugin',
+      headers: { 'Content-Type': 'text/plain' },
+      body: name,
+      commandId,
+    });
+  }
+
+  async stopPlugin(name: string, commandId?: string): Promise<void> {
+    await this.http.raw({
+      method: 'POST',
+      path: '/machine/stopPlugin',
+      headers: { 'Content-Type': 'text/plain' },
+      body: name,
+      commandId,
+    });
+  }
+}
+
+/** "0:/gcodes/sub/file.gcode" → "file.gcode" */
+export function baseName(path: string): string {
+  const i = path.lastIndexOf('/');
+  return i >= 0 ? path.slice(i + 1) : path;
+}
+
+/** Join an RRF directory and a name ("0:/gcodes/" + "a.gcode" → "0:/gcodes/a.gcode"). */
+export function joinPath(dir: string, name: string): string {
+  return dir.endsWith('/') ? dir + name : `${dir}/${name}`;
+}
+
+/** Quote a path for a G-code string parameter (RRF doubles embedded quotes). */
+export function quoteGcode(path: string): string {
+  return `"${path.replace(/"/g, '""')}"`;
+}
