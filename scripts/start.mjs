@@ -25,9 +25,15 @@ const sourcesTime = Math.max(
 );
 if (!existsSync(built) || statSync(built).mtimeMs < sourcesTime) {
   console.log('Building the console…');
-  const r = spawnSync('npx', ['vite', 'build', '--configLoader', 'runner', '--logLevel', 'warn'], { cwd: root, stdio: 'inherit' });
+  const r = spawnSync('npx', ['vite', 'build', '--configLoader', 'runner', '--logLevel', 'warn'], {
+    cwd: root,
+    stdio: 'inherit',
+  });
   if (r.status !== 0) process.exit(r.status ?? 1);
 }
-const child = spawn('npx', ['vite', 'preview', '--configLoader', 'runner', ...process.argv.slice(2)], { cwd: root, stdio: 'inherit' });
+const child = spawn('npx', ['vite', 'preview', '--configLoader', 'runner', ...process.argv.slice(2)], {
+  cwd: root,
+  stdio: 'inherit',
+});
 child.on('exit', (code) => process.exit(code ?? 0));
 for (const sig of ['SIGINT', 'SIGTERM']) process.on(sig, () => child.kill(sig));

@@ -7,7 +7,7 @@ import { EmptyState, Notice } from '../ui';
 import { AlarmBanner } from './AlarmBanner';
 import { AuditPage } from './audit/AuditPage';
 import { LoginPage } from './auth/LoginPage';
-import { UserMenu } from './UserMenu';
+import { AuthMenu } from './auth/UserControls';
 import { demoState } from './boot';
 import { ErrorBoundary } from './ErrorBoundary';
 import { FleetPage } from './FleetPage';
@@ -102,7 +102,7 @@ export function App() {
               <option value="dark">Theme: dark</option>
             </select>
           </label>
-          <UserMenu />
+          <AuthMenu />
         </div>
       </header>
       {mode === 'open' && (

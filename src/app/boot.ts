@@ -3,7 +3,8 @@ import { controllers } from '../controllers';
 import { authStore } from '../fleet/auth';
 import { commandHistory } from '../fleet/commands';
 import { createRuntime, fleetStore, getRuntime, registerRuntime, allRuntimes } from '../fleet/fleet';
-import { MACHINE_KINDS, ROLES, type MachineInfo } from '../fleet/types';
+import { MACHINE_KINDS, type MachineInfo } from '../fleet/types';
+import { fetchSession, trackActivity } from './auth/api';
 import { simulatorFor, startDemo } from './demo';
 
 const MachinesAnswer = z.object({
@@ -19,13 +20,6 @@ const MachinesAnswer = z.object({
   demo: z.boolean().optional(),
 });
 
-const SessionAnswer = z.object({
-  mode: z.enum(['open', 'secured']),
-  user: z
-    .object({ name: z.string(), role: z.enum(ROLES), machines: z.array(z.string()).nullable() })
-    .nullable(),
-});
-
 export const demoState = {
   mode: 'none' as 'service-worker' | 'fallback' | 'none',
   error: undefined as string | undefined,
@@ -33,14 +27,12 @@ export const demoState = {
 
 export async function loadSession(): Promise<void> {
   try {
-    const r = await fetch('/api/session', { credentials: 'same-origin' });
-    if (!r.ok) throw new Error(`HTTP ${r.status}`);
-    const s = SessionAnswer.parse(await r.json());
-    authStore.setState({ mode: s.mode, user: s.user });
+    await fetchSession();
   } catch {
-    // A gateway without access control (or an old one): behave as open mode, and say so.
+    // A gateway without access control: behave as open mode, and say so in the banner.
     authStore.setState({ mode: 'open', user: null });
   }
+  trackActivity();
 }
 
 /** Loads the fleet, starts demo simulators, creates and starts one session per machine. */

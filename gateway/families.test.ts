@@ -1,0 +1,184 @@
+import path from 'node:path';
+import { afterEach, beforeAll, describe, expect, it } from 'vitest';
+import type { FamilyDescriptor } from '../src/fleet/contract';
+import { MACHINE_KINDS, ROLES, roleAtLeast, type MachineKind, type Role } from '../src/fleet/types';
+import type { Families } from './gateway';
+import type { MachineEntry } from './machines';
+import { login, openWs, startGateway, startStub, tempDir, user, writeJson } from './test-util';
+
+/**
+ * Every role against every registered family's declared requests, HTTP and WebSocket: the
+ * gateway allows exactly what the family's own access declaration allows for the role, and
+ * nothing refused reaches the controller. Uses whatever src/controllers/families.ts registers.
+ */
+
+let families: Families = {};
+let loadError: string | null = null;
+
+beforeAll(async () => {
+  try {
+    families = (await import('../src/controllers/families')).families;
+  } catch (e) {
+    loadError = e instanceof Error ? e.message : String(e);
+  }
+});
+
+const cleanups: Array<() => Promise<void> | void> = [];
+afterEach(async () => {
+  for (const c of cleanups.splice(0).reverse()) await c();
+});
+
+interface Probe {
+  method: string;
+  path: string;
+  body?: string;
+  ws?: boolean;
+}
+
+/** Requests everyone may try on any family: the family's declaration decides what they need. */
+const GENERIC: Probe[] = [
+  { method: 'GET', path: '/' },
+  { method: 'GET', path: '/status' },
+  { method: 'POST', path: '/', body: '{}' },
+  { method: 'PUT', path: '/anything', body: '{}' },
+  { method: 'DELETE', path: '/anything' },
+  { method: 'GET', path: '/', ws: true },
+];
+
+/** Requests from the protocol documents, used only when that family is registered. */
+const DOCUMENTED: Partial<Record<MachineKind, Probe[]>> = {
+  xtool: [
+    { method: 'GET', path: '/progress' },
+    { method: 'GET', path: '/cnc/data?action=pause' },
+    { method: 'GET', path: '/cnc/data?action=stop' },
+    { method: 'GET', path: '/system?action=setFlameAlarmMode&mode=1' },
+    { method: 'GET', path: '/system?action=version' },
+  ],
+  duet: [
+    { method: 'GET', path: '/machine/status' },
+    { method: 'POST', path: '/machine/code', body: 'M25' },
+    { method: 'POST', path: '/machine/code', body: 'M112' },
+    { method: 'POST', path: '/machine/code', body: 'G28' },
+    { method: 'PUT', path: '/machine/file/0%3A%2Fgcodes%2Fpart.gcode', body: 'G1 X1' },
+    { method: 'DELETE', path: '/machine/file/0%3A%2Fsys%2Fconfig.g' },
+    { method: 'GET', path: '/machine', ws: true },
+  ],
+  touchcut: [
+    { method: 'GET', path: '/rest/v1/status?units=metric' },
+    { method: 'POST', path: '/rest/v1/auth/change-password', body: '{}' },
+    { method: 'POST', path: '/rest/v1/settings', body: '{}' },
+  ],
+  prunt: [
+    { method: 'GET', path: '/config/values' },
+    { method: 'POST', path: '/pause/pause' },
+    { method: 'POST', path: '/config/values', body: '{}' },
+    { method: 'GET', path: '/websocket', ws: true },
+  ],
+  g2core: [
+    { method: 'GET', path: '/machine/clear' },
+    { method: 'PUT', path: '/machine/mfo', body: '{"mfo":1.2}' },
+    { method: 'PUT', path: '/machine/xvm', body: '{"xvm":1000}' },
+    { method: 'POST', path: '/operation', body: '{"lines":["G28.2 X0"]}' },
+    { method: 'POST', path: '/operation', body: '{"lines":["M3 S1000"]}' },
+  ],
+};
+
+const PW = 'family-test-pass';
+const NAMES: Record<Role, string> = { viewer: 'vic', operator: 'ola', supervisor: 'sue' };
+
+function declared(fam: FamilyDescriptor, p: Probe): Role {
+  const [pathname, q = ''] = p.path.split('?') as [string, string?];
+  return fam.access({
+    method: p.method,
+    path: pathname,
+    query: new URLSearchParams(q),
+    body: fam.accessNeedsBody?.(p.method, pathname) ? p.body : undefined,
+    websocket: p.ws,
+  }).role;
+}
+
+describe('registered families × roles', () => {
+  it('loads the family registry', () => {
+    expect(loadError).toBeNull();
+    expect(Object.keys(families).length).toBeGreaterThan(0);
+  });
+
+  for (const kind of MACHINE_KINDS) {
+    it(`${kind}: each role is allowed exactly the declared requests (HTTP and WebSocket)`, async (ctx) => {
+      const fam = families[kind];
+      if (!fam) {
+        ctx.skip();
+        return;
+      }
+      const probes = [...GENERIC, ...(DOCUMENTED[kind] ?? [])];
+      const needs = probes.map((p) => declared(fam, p));
+      // The test can only fail if the probes need different roles.
+      expect(new Set(needs).size).toBeGreaterThan(1);
+
+      const t = tempDir();
+      cleanups.push(t.cleanup);
+      const stub = await startStub();
+      cleanups.push(stub.close);
+      const usersFile = writeJson(path.join(t.dir, 'users.json'), {
+        users: ROLES.map((r) => user(NAMES[r], r, PW)),
+      });
+      const m: MachineEntry = {
+        id: `m-${kind}`,
+        name: kind,
+        kind,
+        simulated: false,
+        url: new URL(stub.url),
+        wsUrl: new URL(stub.wsUrl),
+        secrets: { apiKey: 'family-test-api-key', password: 'family-test-password' },
+      };
+      const gw = await startGateway({
+        machines: { file: null, machines: [m] },
+        families,
+        dataDir: t.dir,
+        usersFile,
+        env: {},
+      });
+      cleanups.push(gw.close);
+
+      for (const role of ROLES) {
+        const cookie = await login(gw.url, NAMES[role], PW);
+        for (const [i, p] of probes.entries()) {
+          const need = needs[i]!;
+          const allowed = roleAtLeast(role, need);
+          const label = `${role} ${p.ws ? 'WS' : p.method} ${p.path} ${p.body ?? ''} (needs ${need})`;
+          const before = stub.seen.length + stub.wsSeen.length;
+          let status: number;
+          let body = '';
+          if (p.ws) {
+            try {
+              const w = await openWs(`ws://${gw.host}/machines/${m.id}${p.path}`, { Cookie: cookie });
+              await w.close();
+              status = 101;
+            } catch (e) {
+              status = (e as { status?: number }).status ?? 0;
+              body = (e as { body?: string }).body ?? '';
+            }
+          } else {
+            const r = await fetch(`${gw.url}/machines/${m.id}${p.path}`, {
+              method: p.method,
+              headers: { Cookie: cookie },
+              body: p.body,
+            });
+            status = r.status;
+            body = await r.text();
+          }
+          const reached = stub.seen.length + stub.wsSeen.length - before;
+          if (allowed) {
+            expect({ label, status, reached }).toEqual({ label, status: p.ws ? 101 : 200, reached: 1 });
+          } else {
+            expect({ label, status, reached }).toEqual({ label, status: 403, reached: 0 });
+            expect(JSON.parse(body)).toMatchObject({ needs: need });
+          }
+          // No configured secret ever comes back.
+          expect(body).not.toContain('family-test-api-key');
+          expect(body).not.toContain('family-test-password');
+        }
+      }
+    });
+  }
+});

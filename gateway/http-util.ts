@@ -1,0 +1,182 @@
+import type { IncomingHttpHeaders, IncomingMessage, ServerResponse } from 'node:http';
+import type { Duplex } from 'node:stream';
+
+/** Small helpers for the gateway's own answers and for header hygiene. */
+
+export function sendJson(
+  res: ServerResponse,
+  status: number,
+  body: unknown,
+  headers: Record<string, string> = {},
+): void {
+  const text = JSON.stringify(body);
+  res.writeHead(status, {
+    'Content-Type': 'application/json; charset=utf-8',
+    'Content-Length': Buffer.byteLength(text),
+    'Cache-Control': 'no-store',
+    'X-Content-Type-Options': 'nosniff',
+    ...headers,
+  });
+  res.end(text);
+}
+
+/** Answers a refused WebSocket upgrade on the raw socket with a JSON body, then closes it. */
+export function rejectUpgrade(socket: Duplex, status: number, body: unknown): void {
+  const text = JSON.stringify(body);
+  const reason: Record<number, string> = {
+    400: 'Bad Request',
+    401: 'Unauthorized',
+    403: 'Forbidden',
+    404: 'Not Found',
+    502: 'Bad Gateway',
+    503: 'Service Unavailable',
+    504: 'Gateway Timeout',
+  };
+  if (socket.writable) {
+    socket.write(
+      `HTTP/1.1 ${status} ${reason[status] ?? 'Error'}\r\n` +
+        'Connection: close\r\n' +
+        'Content-Type: application/json; charset=utf-8\r\n' +
+        `Content-Length: ${Buffer.byteLength(text)}\r\n` +
+        '\r\n' +
+        text,
+    );
+  }
+  socket.destroy();
+}
+
+export class BodyTooLarge extends Error {
+  constructor(readonly limit: number) {
+    super(`request body larger than ${limit} bytes`);
+  }
+}
+
+/** Reads a request body into memory, refusing more than `limit` bytes. */
+export function readBody(req: IncomingMessage, limit: number): Promise<Buffer> {
+  return new Promise((resolve, reject) => {
+    const chunks: Buffer[] = [];
+    let size = 0;
+    let failed = false;
+    req.on('data', (c: Buffer) => {
+      if (failed) return;
+      size += c.length;
+      if (size > limit) {
+        failed = true;
+        reject(new BodyTooLarge(limit));
+        req.resume();
+        return;
+      }
+      chunks.push(c);
+    });
+    req.on('end', () => {
+      if (!failed) resolve(Buffer.concat(chunks));
+    });
+    req.on('error', (e) => {
+      if (!failed) reject(e);
+    });
+  });
+}
+
+export async function readJson(req: IncomingMessage, limit = 16 * 1024): Promise<unknown> {
+  const buf = await readBody(req, limit);
+  if (buf.length === 0) return {};
+  return JSON.parse(buf.toString('utf8')) as unknown;
+}
+
+/** Headers that describe one hop, not the message (RFC 9110 §7.6.1), plus those named in Connection. */
+const HOP_BY_HOP = new Set([
+  'connection',
+  'keep-alive',
+  'proxy-authenticate',
+  'proxy-authorization',
+  'proxy-connection',
+  'te',
+  'trailer',
+  'transfer-encoding',
+  'upgrade',
+  'host',
+  'content-length',
+]);
+
+function connectionTokens(headers: IncomingHttpHeaders): Set<string> {
+  const c = headers.connection;
+  const s = new Set<string>();
+  if (typeof c === 'string') for (const t of c.split(',')) s.add(t.trim().toLowerCase());
+  return s;
+}
+
+/**
+ * Headers forwarded to a controller: no hop-by-hop headers, no cookies (the console's session
+ * cookie stays here), no `X-Shopdeck-*`, no Origin/Referer (controllers such as DSF refuse
+ * foreign origins), no Accept-Encoding (so that answers can be checked for secrets). An
+ * Authorization header passes: it is the controller's own login (TouchCut's JWT), not ours.
+ */
+export function forwardRequestHeaders(headers: IncomingHttpHeaders): Record<string, string> {
+  const out: Record<string, string> = {};
+  const conn = connectionTokens(headers);
+  for (const [k, v] of Object.entries(headers)) {
+    const key = k.toLowerCase();
+    if (v === undefined) continue;
+    if (HOP_BY_HOP.has(key) || conn.has(key)) continue;
+    if (key === 'cookie' || key.startsWith('x-shopdeck-')) continue;
+    if (key === 'origin' || key === 'referer' || key === 'accept-encoding') continue;
+    if (key.startsWith('sec-websocket-') || key.startsWith('x-forwarded-') || key === 'forwarded') continue;
+    out[key] = Array.isArray(v) ? v.join(', ') : v;
+  }
+  return out;
+}
+
+/**
+ * Headers of a controller's answer passed to the browser: no hop-by-hop headers, no
+ * Set-Cookie (the controller's session is the gateway's business), no WWW-Authenticate (it
+ * would pop up the browser's own password dialog).
+ */
+export function forwardResponseHeaders(headers: IncomingHttpHeaders): Record<string, string | string[]> {
+  const out: Record<string, string | string[]> = {};
+  const conn = connectionTokens(headers);
+  for (const [k, v] of Object.entries(headers)) {
+    const key = k.toLowerCase();
+    if (v === undefined) continue;
+    if (HOP_BY_HOP.has(key) || conn.has(key)) continue;
+    if (key === 'set-cookie' || key === 'www-authenticate' || key === 'proxy-authenticate') continue;
+    out[key] = v;
+  }
+  return out;
+}
+
+export function clientAddress(req: IncomingMessage): string {
+  return req.socket.remoteAddress ?? 'unknown';
+}
+
+/**
+ * Cross-site request check for state-changing requests and WebSocket upgrades: when the browser
+ * sends an Origin, its host must be the host the request was sent to.
+ */
+export function sameOrigin(req: IncomingMessage): boolean {
+  const origin = req.headers.origin;
+  if (!origin || origin === 'null') return origin !== 'null';
+  try {
+    return new URL(origin).host === req.headers.host;
+  } catch {
+    return false;
+  }
+}
+
+export function parseCookies(header: string | undefined): Record<string, string> {
+  const out: Record<string, string> = {};
+  if (!header) return out;
+  for (const part of header.split(';')) {
+    const i = part.indexOf('=');
+    if (i < 0) continue;
+    const k = part.slice(0, i).trim();
+    const v = part.slice(i + 1).trim();
+    if (k && !(k in out)) {
+      try {
+        out[k] = decodeURIComponent(v);
+      } catch {
+        out[k] = v;
+      }
+    }
+  }
+  return out;
+}

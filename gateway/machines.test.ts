@@ -1,0 +1,160 @@
+import path from 'node:path';
+import { afterEach, describe, expect, it } from 'vitest';
+import { DEMO_FLEET, loadMachines, MachinesFileError, secretForms, redact } from './machines';
+import { tempDir, writeJson } from './test-util';
+
+const cleanups: Array<() => void> = [];
+afterEach(() => {
+  for (const c of cleanups.splice(0)) c();
+});
+
+function dir(): string {
+  const t = tempDir();
+  cleanups.push(t.cleanup);
+  return t.dir;
+}
+
+function problemsOf(machines: unknown[], env: NodeJS.ProcessEnv = {}): { file: string; message: string } {
+  const d = dir();
+  const file = writeJson(path.join(d, 'm.json'), { machines });
+  try {
+    loadMachines({ machinesFile: file, env, cwd: d });
+  } catch (e) {
+    expect(e).toBeInstanceOf(MachinesFileError);
+    return { file, message: (e as Error).message };
+  }
+  throw new Error('the file was accepted');
+}
+
+const good = { id: 'laser-1', name: 'Laser 1', kind: 'xtool', url: 'http://10.0.0.50:8080' };
+
+describe('machines file', () => {
+  it('loads the documented example, resolving env: secrets', () => {
+    const d = dir();
+    const file = writeJson(path.join(d, 'machines.json'), {
+      machines: [
+        {
+          id: 'plasma-1',
+          name: 'Plasma table',
+          kind: 'touchcut',
+          url: 'https://kineticcutter',
+          apiKey: 'env:TOUCHCUT_KEY',
+        },
+        { id: 'router', name: 'Router', kind: 'g2core', url: 'http://10.0.0.12:8080' },
+        {
+          id: 'mk3',
+          name: 'Printer A',
+          kind: 'duet',
+          url: 'http://duet3.local',
+          password: 'env:DUET_PASSWORD',
+        },
+        {
+          id: 'laser-1',
+          name: 'Laser 1',
+          kind: 'xtool',
+          url: 'http://10.0.0.50:8080',
+          wsUrl: 'ws://10.0.0.50:8081',
+        },
+        { id: 'p1', name: 'Prunt 1', kind: 'prunt', url: 'http://prunt.local:8080' },
+        { id: 'demo-laser', name: 'Demo laser', kind: 'xtool', simulated: true },
+      ],
+    });
+    // machines.json in the project root is picked up without SHOPDECK_MACHINES.
+    const c = loadMachines({ env: { TOUCHCUT_KEY: 'k-123456', DUET_PASSWORD: 'reprap' }, cwd: d });
+    expect(c.file).toBe(file);
+    expect(c.machines.map((m) => m.id)).toEqual(['plasma-1', 'router', 'mk3', 'laser-1', 'p1', 'demo-laser']);
+    expect(c.machines[0]?.secrets).toEqual({ apiKey: 'k-123456' });
+    expect(c.machines[2]?.secrets).toEqual({ password: 'reprap' });
+    expect(c.machines[3]?.wsUrl?.href).toBe('ws://10.0.0.50:8081/');
+    expect(c.machines[5]).toMatchObject({ simulated: true, url: null });
+  });
+
+  it('uses the built-in demo fleet when there is no file', () => {
+    const c = loadMachines({ env: {}, cwd: dir() });
+    expect(c.file).toBeNull();
+    expect(c.machines.map((m) => [m.id, m.kind, m.simulated])).toEqual(
+      DEMO_FLEET.map((m) => [m.id, m.kind, true]),
+    );
+    expect(c.machines.map((m) => m.id)).toEqual([
+      'demo-xtool',
+      'demo-touchcut',
+      'demo-duet',
+      'demo-prunt',
+      'demo-g2core',
+    ]);
+  });
+
+  it('SHOPDECK_MACHINES wins and must exist', () => {
+    const d = dir();
+    writeJson(path.join(d, 'machines.json'), { machines: [good] });
+    const other = writeJson(path.join(d, 'other.json'), { machines: [{ ...good, id: 'other' }] });
+    expect(loadMachines({ env: { SHOPDECK_MACHINES: 'other.json' }, cwd: d }).machines[0]?.id).toBe('other');
+    expect(other).toContain('other.json');
+    expect(() => loadMachines({ env: { SHOPDECK_MACHINES: 'nope.json' }, cwd: d })).toThrow(
+      /nope\.json.*does not exist/s,
+    );
+  });
+
+  it('names the file, the entry and the field: unknown kind', () => {
+    const { file, message } = problemsOf([good, { ...good, id: 'cutter', kind: 'plasmatron' }]);
+    expect(message).toContain(file);
+    expect(message).toMatch(
+      /machines\[1\] \(id "cutter"\): field "kind": must be one of touchcut, g2core, duet, xtool, prunt/,
+    );
+  });
+
+  it('bad id', () => {
+    expect(problemsOf([{ ...good, id: 'Laser 1' }]).message).toMatch(
+      /machines\[0\] \(id "Laser 1"\): field "id": must be 1 to 40/,
+    );
+  });
+
+  it('duplicate id', () => {
+    expect(problemsOf([good, good]).message).toMatch(
+      /machines\[1\] \(id "laser-1"\): field "id": duplicate id "laser-1" \(also machines\[0\]\)/,
+    );
+  });
+
+  it('missing url unless simulated', () => {
+    const { message } = problemsOf([{ id: 'a', name: 'A', kind: 'duet' }]);
+    expect(message).toMatch(
+      /machines\[0\] \(id "a"\): field "url": missing \(required unless "simulated": true\)/,
+    );
+  });
+
+  it('env:NAME not set', () => {
+    const { message } = problemsOf([{ ...good, kind: 'touchcut', apiKey: 'env:TOUCHCUT_KEY' }]);
+    expect(message).toMatch(
+      /machines\[0\] \(id "laser-1"\): field "apiKey": environment variable TOUCHCUT_KEY is not set/,
+    );
+  });
+
+  it('bad url, bad wsUrl, unknown field, broken JSON', () => {
+    expect(problemsOf([{ ...good, url: 'ftp://x' }]).message).toMatch(
+      /field "url": "ftp:\/\/x" must start with http:\/\/ or https:\/\//,
+    );
+    expect(problemsOf([{ ...good, url: 'not a url' }]).message).toMatch(
+      /field "url": "not a url" is not a URL/,
+    );
+    expect(problemsOf([{ ...good, wsUrl: 'http://x:8081' }]).message).toMatch(/field "wsUrl"/);
+    expect(problemsOf([{ ...good, wsurl: 'ws://x' }]).message).toMatch(
+      /machines\[0\] \(id "laser-1"\): field "wsurl": unknown field/,
+    );
+    const d = dir();
+    const f = path.join(d, 'broken.json');
+    writeJson(f, {});
+    expect(() => loadMachines({ machinesFile: f, env: {}, cwd: d })).toThrow(
+      /broken\.json[\s\S]*field "machines": missing/,
+    );
+  });
+});
+
+describe('secret redaction', () => {
+  it('covers the forms a controller could echo a secret in', () => {
+    const forms = secretForms({ apiKey: 'a/b c"d', password: 'xy' });
+    const text = `${'a/b c"d'} ${encodeURIComponent('a/b c"d')} ${JSON.stringify('a/b c"d')} ${Buffer.from('a/b c"d').toString('base64')}`;
+    expect(redact(text, forms)).not.toMatch(/a\/b|a%2Fb|YS9i/);
+    // Secrets shorter than 4 characters are not hunted in bodies (they would mangle every answer).
+    expect(forms).not.toContain('xy');
+  });
+});

@@ -1,0 +1,211 @@
+import { existsSync, readFileSync } from 'node:fs';
+import path from 'node:path';
+import { z } from 'zod';
+import type { GatewaySecrets } from '../src/fleet/contract';
+import { MACHINE_ID, MACHINE_KINDS, type MachineInfo, type MachineKind } from '../src/fleet/types';
+
+/**
+ * The machines file (DESIGN.md, "The machines file"): `SHOPDECK_MACHINES`, else
+ * `machines.json` in the project root, else the built-in demo fleet. A bad file stops the
+ * server with a message that names the file, the entry (index and id) and the field.
+ */
+
+export interface MachineEntry {
+  id: string;
+  name: string;
+  kind: MachineKind;
+  simulated: boolean;
+  /** Controller base URL (null for simulated machines without one). */
+  url: URL | null;
+  /** WebSocket base URL when the socket is elsewhere. */
+  wsUrl: URL | null;
+  /** Resolved secret values (never sent to the browser). */
+  secrets: GatewaySecrets;
+}
+
+export interface MachinesConfig {
+  /** Absolute path of the file, or null for the built-in demo fleet. */
+  file: string | null;
+  machines: MachineEntry[];
+}
+
+export class MachinesFileError extends Error {
+  constructor(
+    readonly file: string,
+    readonly problems: string[],
+  ) {
+    super(`Shopdeck: the machines file ${file} is not valid:\n  ${problems.join('\n  ')}`);
+    this.name = 'MachinesFileError';
+  }
+}
+
+export const DEMO_FLEET: ReadonlyArray<{ id: string; name: string; kind: MachineKind }> = [
+  { id: 'demo-xtool', name: 'Laser bay — xTool D1 Pro', kind: 'xtool' },
+  { id: 'demo-touchcut', name: 'Plasma table — TouchCut', kind: 'touchcut' },
+  { id: 'demo-duet', name: 'Printer bay — Duet 3', kind: 'duet' },
+  { id: 'demo-prunt', name: 'Printer bay — Prunt', kind: 'prunt' },
+  { id: 'demo-g2core', name: 'CNC router — g2core', kind: 'g2core' },
+];
+
+const entrySchema = z.strictObject({
+  id: z.string({ error: 'missing or not a string' }).regex(MACHINE_ID, 'must be 1 to 40 of a-z, 0-9 and "-"'),
+  name: z
+    .string({ error: 'missing or not a string' })
+    .trim()
+    .min(1, 'must not be empty')
+    .max(120, 'too long'),
+  kind: z.enum(MACHINE_KINDS, { error: `must be one of ${MACHINE_KINDS.join(', ')}` }),
+  url: z.string({ error: 'must be a string' }).optional(),
+  wsUrl: z.string({ error: 'must be a string' }).optional(),
+  apiKey: z.string({ error: 'must be a string' }).min(1, 'must not be empty').optional(),
+  password: z.string({ error: 'must be a string' }).min(1, 'must not be empty').optional(),
+  simulated: z.boolean({ error: 'must be true or false' }).optional(),
+});
+
+function describeEntry(index: number, raw: unknown): string {
+  const id = raw && typeof raw === 'object' && 'id' in raw ? (raw as { id: unknown }).id : undefined;
+  return `machines[${index}]${typeof id === 'string' ? ` (id "${id}")` : ''}`;
+}
+
+function parseUrl(value: string, protocols: string[]): URL | string {
+  let u: URL;
+  try {
+    u = new URL(value);
+  } catch {
+    return `"${value}" is not a URL`;
+  }
+  if (!protocols.includes(u.protocol))
+    return `"${value}" must start with ${protocols.map((p) => p + '//').join(' or ')}`;
+  if (u.search || u.hash) return `"${value}" must not have a query or fragment`;
+  return u;
+}
+
+function resolveSecret(
+  value: string | undefined,
+  env: NodeJS.ProcessEnv,
+): string | undefined | { missing: string } {
+  if (value === undefined) return undefined;
+  if (!value.startsWith('env:')) return value;
+  const name = value.slice(4);
+  const v = env[name];
+  if (v === undefined || v === '') return { missing: name };
+  return v;
+}
+
+/** Validates the parsed JSON of a machines file. Throws MachinesFileError listing every problem. */
+export function parseMachines(file: string, data: unknown, env: NodeJS.ProcessEnv): MachineEntry[] {
+  const problems: string[] = [];
+  if (!data || typeof data !== 'object' || Array.isArray(data) || !('machines' in data)) {
+    throw new MachinesFileError(file, [
+      'top level: field "machines": missing (expected { "machines": [ … ] })',
+    ]);
+  }
+  const list = (data as { machines: unknown }).machines;
+  if (!Array.isArray(list))
+    throw new MachinesFileError(file, ['top level: field "machines": must be an array']);
+  const extra = Object.keys(data).filter((k) => k !== 'machines' && k !== '$schema' && k !== 'comment');
+  if (extra.length) problems.push(`top level: field "${extra.join('", "')}": unknown field`);
+  const out: MachineEntry[] = [];
+  const seen = new Map<string, number>();
+  list.forEach((raw, i) => {
+    const where = describeEntry(i, raw);
+    const r = entrySchema.safeParse(raw);
+    if (!r.success) {
+      for (const issue of r.error.issues) {
+        if (issue.code === 'unrecognized_keys') {
+          problems.push(`${where}: field "${issue.keys.join('", "')}": unknown field`);
+        } else if (issue.path.length === 0) {
+          problems.push(`${where}: must be an object with id, name, kind and url`);
+        } else {
+          problems.push(`${where}: field "${issue.path.join('.')}": ${issue.message}`);
+        }
+      }
+      return;
+    }
+    const e = r.data;
+    const before = seen.get(e.id);
+    if (before !== undefined) {
+      problems.push(`${where}: field "id": duplicate id "${e.id}" (also machines[${before}])`);
+      return;
+    }
+    seen.set(e.id, i);
+    const simulated = e.simulated ?? false;
+    let url: URL | null = null;
+    let wsUrl: URL | null = null;
+    if (e.url === undefined) {
+      if (!simulated) problems.push(`${where}: field "url": missing (required unless "simulated": true)`);
+    } else {
+      const u = parseUrl(e.url, ['http:', 'https:']);
+      if (typeof u === 'string') problems.push(`${where}: field "url": ${u}`);
+      else url = u;
+    }
+    if (e.wsUrl !== undefined) {
+      const u = parseUrl(e.wsUrl, ['ws:', 'wss:']);
+      if (typeof u === 'string') problems.push(`${where}: field "wsUrl": ${u}`);
+      else wsUrl = u;
+    }
+    const secrets: GatewaySecrets = {};
+    for (const field of ['apiKey', 'password'] as const) {
+      const v = resolveSecret(e[field], env);
+      if (v === undefined) continue;
+      if (typeof v === 'object')
+        problems.push(`${where}: field "${field}": environment variable ${v.missing} is not set`);
+      else secrets[field] = v;
+    }
+    out.push({ id: e.id, name: e.name, kind: e.kind, simulated, url, wsUrl, secrets });
+  });
+  if (problems.length) throw new MachinesFileError(file, problems);
+  return out;
+}
+
+export function demoFleet(): MachineEntry[] {
+  return DEMO_FLEET.map((m) => ({ ...m, simulated: true, url: null, wsUrl: null, secrets: {} }));
+}
+
+/** Finds and loads the machines file. Throws MachinesFileError when it is wrong. */
+export function loadMachines(
+  opts: { machinesFile?: string; env?: NodeJS.ProcessEnv; cwd?: string } = {},
+): MachinesConfig {
+  const env = opts.env ?? process.env;
+  const cwd = opts.cwd ?? process.cwd();
+  const explicit = opts.machinesFile ?? env.SHOPDECK_MACHINES;
+  let file: string | null = null;
+  if (explicit) {
+    file = path.resolve(cwd, explicit);
+    if (!existsSync(file))
+      throw new MachinesFileError(file, ['the file does not exist (set by SHOPDECK_MACHINES)']);
+  } else if (existsSync(path.join(cwd, 'machines.json'))) {
+    file = path.join(cwd, 'machines.json');
+  }
+  if (!file) return { file: null, machines: demoFleet() };
+  let data: unknown;
+  try {
+    data = JSON.parse(readFileSync(file, 'utf8')) as unknown;
+  } catch (e) {
+    throw new MachinesFileError(file, [`not readable JSON: ${e instanceof Error ? e.message : String(e)}`]);
+  }
+  return { file, machines: parseMachines(file, data, env) };
+}
+
+export function machineInfo(m: MachineEntry): MachineInfo {
+  return { id: m.id, name: m.name, kind: m.kind, simulated: m.simulated };
+}
+
+/** Every secret value of a machine, in the forms it could be echoed back in. */
+export function secretForms(secrets: GatewaySecrets): string[] {
+  const out = new Set<string>();
+  for (const v of [secrets.apiKey, secrets.password]) {
+    if (!v || v.length < 4) continue;
+    out.add(v);
+    out.add(encodeURIComponent(v));
+    out.add(JSON.stringify(v).slice(1, -1));
+    out.add(Buffer.from(v).toString('base64'));
+  }
+  return [...out].filter((s) => s.length >= 4).sort((a, b) => b.length - a.length);
+}
+
+export function redact(text: string, forms: readonly string[]): string {
+  let t = text;
+  for (const f of forms) if (t.includes(f)) t = t.split(f).join('[redacted]');
+  return t;
+}

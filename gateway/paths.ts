@@ -1,0 +1,85 @@
+/**
+ * Canonical controller paths. The gateway classifies a request by its path (access policy)
+ * and must forward exactly what it classified, so `/cnc//data`, `/cnc/./data` or `/cnc/%64ata`
+ * cannot slip past a rule written for `/cnc/data`.
+ */
+
+const PCHAR_KEEP: Record<string, string> = {
+  '%3A': ':',
+  '%40': '@',
+  '%24': '$',
+  '%26': '&',
+  '%2B': '+',
+  '%2C': ',',
+  '%3B': ';',
+  '%3D': '=',
+};
+
+function encodeSegment(seg: string): string {
+  return encodeURIComponent(seg).replace(/%(3A|40|24|26|2B|2C|3B|3D)/g, (m) => PCHAR_KEEP[m] ?? m);
+}
+
+/**
+ * Decodes each segment, drops empty and `.` segments, resolves `..` (never above the root) and
+ * re-encodes in one canonical form. A trailing slash is kept. Null when the path is not valid
+ * percent-encoding.
+ */
+export function canonicalPath(raw: string): string | null {
+  const segs = raw.split('/');
+  const out: string[] = [];
+  for (let i = 1; i < segs.length; i++) {
+    let seg: string;
+    try {
+      seg = decodeURIComponent(segs[i] ?? '');
+    } catch {
+      return null;
+    }
+    const last = i === segs.length - 1;
+    if (seg === '' && !last) continue;
+    if (seg === '.') {
+      if (last) out.push('');
+      continue;
+    }
+    if (seg === '..') {
+      out.pop();
+      if (last) out.push('');
+      continue;
+    }
+    out.push(encodeSegment(seg));
+  }
+  return '/' + out.join('/');
+}
+
+export interface SplitTarget {
+  /** Canonical path, starts with "/" */
+  path: string;
+  /** Raw query string without "?", "" when none */
+  rawQuery: string;
+  query: URLSearchParams;
+}
+
+export type SplitResult = SplitTarget | { error: string };
+
+/**
+ * Splits "/a/b?x=1" (the part after `/machines/<id>`). Refuses a query with a repeated key:
+ * a family reads the first value, a controller may act on the last.
+ */
+export function splitTarget(rest: string): SplitResult {
+  const hash = rest.indexOf('#');
+  const noHash = hash >= 0 ? rest.slice(0, hash) : rest;
+  const q = noHash.indexOf('?');
+  const rawPath = q >= 0 ? noHash.slice(0, q) : noHash;
+  const rawQuery = q >= 0 ? noHash.slice(q + 1) : '';
+  const path = canonicalPath(rawPath.startsWith('/') ? rawPath : '/' + rawPath);
+  if (path === null) return { error: 'the path is not valid percent-encoding' };
+  let query: URLSearchParams;
+  try {
+    query = new URLSearchParams(rawQuery);
+    for (const [k] of query) decodeURIComponent(k);
+  } catch {
+    return { error: 'the query is not valid percent-encoding' };
+  }
+  const keys = [...query.keys()];
+  if (new Set(keys).size !== keys.length) return { error: 'a query parameter is repeated' };
+  return { path, rawQuery, query };
+}

@@ -1,0 +1,82 @@
+import { afterEach, describe, expect, it } from 'vitest';
+import { startSimFleet, startSimServer } from './sim-server';
+import { openWs, startGateway, tempDir, testFamily } from './test-util';
+import { parseMachines } from './machines';
+
+const cleanups: Array<() => Promise<void> | void> = [];
+afterEach(async () => {
+  for (const c of cleanups.splice(0).reverse()) await c();
+});
+
+describe('simulator server', () => {
+  it('serves a simulator over HTTP and WebSocket, with fault injection and controls', async () => {
+    let pressed = 0;
+    const fam = testFamily('prunt');
+    const base = fam.createSimulator({ id: 'sim-1', name: 'Sim' });
+    const s = await startSimServer({
+      family: fam,
+      id: 'sim-1',
+      name: 'Sim',
+      simulator: { ...base, controls: () => [{ id: 'button', label: 'Button', run: () => pressed++ }] },
+    });
+    cleanups.push(s.close);
+    expect(await (await fetch(`${s.url}/job?action=pause`)).json()).toMatchObject({
+      path: '/job',
+      action: 'pause',
+    });
+    expect((await fetch(`${s.url}/missing`)).status).toBe(404);
+
+    const post = (p: string, body?: unknown) =>
+      fetch(`${s.url}${p}`, { method: 'POST', body: body === undefined ? undefined : JSON.stringify(body) });
+    expect(await (await post('/__sim/faults', { http5xx: true })).json()).toMatchObject({
+      faults: { http5xx: true },
+    });
+    expect((await fetch(`${s.url}/status`)).status).toBe(503);
+    await post('/__sim/faults', { http5xx: false, malformed: true });
+    const text = await (await fetch(`${s.url}/status`)).text();
+    expect(() => JSON.parse(text) as unknown).toThrow();
+    await post('/__sim/faults', { malformed: false, drop: true });
+    await expect(fetch(`${s.url}/status`)).rejects.toThrow();
+    await post('/__sim/faults', { drop: false });
+
+    const w = await openWs(s.url.replace('http', 'ws') + '/live');
+    expect(w.first).toBe('sim-hello 1');
+    const closed = new Promise<number>((r) => w.ws.once('close', (code) => r(code)));
+    await post('/__sim/close-sockets');
+    expect(await closed).toBe(4000);
+
+    expect((await post('/__sim/control/button')).status).toBe(200);
+    expect(pressed).toBe(1);
+    expect((await post('/__sim/control/nope')).status).toBe(404);
+  });
+
+  it('starts a fleet whose printed machines file is valid and works through the gateway', async () => {
+    const fleet = await startSimFleet({ prunt: testFamily('prunt'), xtool: testFamily('xtool', 8081) });
+    cleanups.push(fleet.close);
+    const machines = parseMachines('sim', JSON.parse(JSON.stringify(fleet.machinesFile)) as unknown, {});
+    expect(machines.map((m) => [m.id, m.kind, m.simulated])).toEqual([
+      ['sim-prunt', 'prunt', false],
+      ['sim-xtool', 'xtool', false],
+    ]);
+    expect(machines[1]?.wsUrl).not.toBeNull();
+    expect(machines[1]?.wsUrl?.port).not.toBe(machines[1]?.url?.port);
+    const t = tempDir();
+    cleanups.push(t.cleanup);
+    const gw = await startGateway({
+      machines: { file: null, machines },
+      families: { prunt: testFamily('prunt'), xtool: testFamily('xtool', 8081) },
+      dataDir: t.dir,
+      env: {},
+    });
+    cleanups.push(gw.close);
+    expect(await (await fetch(`${gw.url}/machines/sim-xtool/job?action=stop`)).json()).toMatchObject({
+      sim: 'sim-xtool',
+      action: 'stop',
+    });
+    const w = await openWs(`ws://${gw.host}/machines/sim-xtool/`);
+    expect(w.first).toBe('sim-hello 1');
+    w.ws.send('hi');
+    expect(await w.next()).toBe('sim-echo:hi');
+    await w.close();
+  });
+});

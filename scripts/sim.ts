@@ -1,0 +1,55 @@
+import { writeFileSync } from 'node:fs';
+import path from 'node:path';
+import { families } from '../src/controllers/families';
+import { startSimFleet } from '../gateway/sim-server';
+
+/**
+ * `npm run sim [-- --write machines.sim.json] [--base-port 47100] [--host 127.0.0.1]`
+ *
+ * Starts every registered family's simulator as a real HTTP + WebSocket server on localhost
+ * (one port per machine, a second one for the socket where the family has its own WebSocket
+ * port) and prints a machines file pointing at them. Run the console against them with
+ * `SHOPDECK_MACHINES=machines.sim.json npm start`.
+ */
+
+function arg(name: string): string | undefined {
+  const i = process.argv.indexOf(name);
+  return i >= 0 ? process.argv[i + 1] : undefined;
+}
+
+async function main(): Promise<void> {
+  const write = arg('--write');
+  const basePort = Number(arg('--base-port') ?? 0);
+  const host = arg('--host') ?? '127.0.0.1';
+  if (!Number.isInteger(basePort) || basePort < 0 || basePort > 65000)
+    throw new Error('--base-port: not a port');
+  const fleet = await startSimFleet(families, { host, basePort });
+  const text = JSON.stringify(fleet.machinesFile, null, 2) + '\n';
+  if (write) {
+    const file = path.resolve(write);
+    writeFileSync(file, text);
+    console.error(`wrote ${file}`);
+  }
+  console.log(text);
+  console.error('Simulated machines (everything here is simulated):');
+  for (const s of fleet.servers) {
+    console.error(`  ${s.id.padEnd(16)} ${s.url}${s.wsUrl ? `  socket ${s.wsUrl}` : ''}`);
+    const controls = s.sim.controls();
+    if (controls.length)
+      console.error(`  ${''.padEnd(16)} controls: ${controls.map((c) => c.id).join(', ')}`);
+  }
+  console.error(
+    '\nFault injection on each port: POST /__sim/faults {"latencyMs":0,"drop":false,"http5xx":false,"malformed":false},' +
+      '\n  POST /__sim/close-sockets, POST /__sim/control/<id>.  Ctrl-C stops.',
+  );
+  const stop = (): void => {
+    void fleet.close().then(() => process.exit(0));
+  };
+  process.on('SIGINT', stop);
+  process.on('SIGTERM', stop);
+}
+
+main().catch((e: unknown) => {
+  console.error(e instanceof Error ? e.message : String(e));
+  process.exit(1);
+});

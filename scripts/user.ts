@@ -1,0 +1,255 @@
+import os from 'node:os';
+import { AuditLog } from '../gateway/audit';
+import {
+  USER_NAME,
+  dataDirPath,
+  hashSecret,
+  readUsers,
+  usersFilePath,
+  writeUsers,
+  type UserRecord,
+} from '../gateway/users';
+import { MACHINE_ID, ROLES, type Role } from '../src/fleet/types';
+
+/**
+ * `npm run user -- <command>` manages the users file (SHOPDECK_USERS, else users.json in the
+ * data folder SHOPDECK_DATA, default .shopdeck/). Creating the first user turns access control
+ * on: the console stops running open.
+ *
+ *   add <name> --role viewer|operator|supervisor [--machines a,b] [--pin] [--password-stdin]
+ *   role <name> <role>            change a user's role
+ *   machines <name> a,b|all       limit a user to some machines
+ *   passwd <name> [--password-stdin]
+ *   pin <name> [--password-stdin] set the PIN a supervisor unlocks a tablet with
+ *   remove <name>
+ *   list
+ *
+ * Passwords are asked on the terminal (not echoed); with --password-stdin the first line of
+ * standard input is the password and, with --pin, the second line the PIN.
+ */
+
+const USAGE = `usage: npm run user -- add <name> --role <${ROLES.join('|')}> [--machines a,b] [--pin] [--password-stdin]
+       npm run user -- role <name> <role> | machines <name> <a,b|all> | passwd <name> | pin <name> | remove <name> | list`;
+
+export class UsageError extends Error {}
+
+function flag(args: string[], name: string): boolean {
+  const i = args.indexOf(name);
+  if (i < 0) return false;
+  args.splice(i, 1);
+  return true;
+}
+
+function option(args: string[], name: string): string | undefined {
+  const i = args.indexOf(name);
+  if (i < 0) return undefined;
+  const v = args[i + 1];
+  if (v === undefined || v.startsWith('--')) throw new UsageError(`${name} needs a value`);
+  args.splice(i, 2);
+  return v;
+}
+
+function parseRole(v: string | undefined): Role {
+  if (!v || !(ROLES as readonly string[]).includes(v))
+    throw new UsageError(`role must be one of ${ROLES.join(', ')}`);
+  return v as Role;
+}
+
+function parseMachines(v: string | undefined): string[] | null {
+  if (v === undefined || v === 'all') return null;
+  const list = v
+    .split(',')
+    .map((s) => s.trim())
+    .filter(Boolean);
+  for (const id of list) if (!MACHINE_ID.test(id)) throw new UsageError(`"${id}" is not a machine id`);
+  if (!list.length) throw new UsageError('--machines: give at least one machine id, or "all"');
+  return list;
+}
+
+let stdinLines: string[] | null = null;
+async function stdinLine(index: number): Promise<string> {
+  if (!stdinLines) {
+    const chunks: Buffer[] = [];
+    for await (const c of process.stdin) chunks.push(c as Buffer);
+    stdinLines = Buffer.concat(chunks).toString('utf8').split(/\r?\n/);
+  }
+  return stdinLines[index] ?? '';
+}
+
+function askHidden(prompt: string): Promise<string> {
+  const stdin = process.stdin;
+  if (!stdin.isTTY) return Promise.reject(new UsageError('no terminal to ask on: use --password-stdin'));
+  process.stderr.write(prompt);
+  return new Promise((resolve, reject) => {
+    let value = '';
+    stdin.setRawMode(true);
+    stdin.resume();
+    stdin.setEncoding('utf8');
+    const onData = (s: string): void => {
+      for (const ch of s) {
+        if (ch === '\r' || ch === '\n') {
+          done();
+          resolve(value);
+          return;
+        }
+        if (ch === '\u0003') {
+          done();
+          reject(new UsageError('cancelled'));
+          return;
+        }
+        if (ch === '\u007f' || ch === '\b') value = value.slice(0, -1);
+        else value += ch;
+      }
+    };
+    const done = (): void => {
+      stdin.off('data', onData);
+      stdin.setRawMode(false);
+      stdin.pause();
+      process.stderr.write('\n');
+    };
+    stdin.on('data', onData);
+  });
+}
+
+export interface UserIo {
+  /** Line `index` of the piped input (--password-stdin). */
+  line(index: number): Promise<string>;
+}
+
+const processIo: UserIo = { line: stdinLine };
+
+async function readSecret(
+  what: 'password' | 'PIN',
+  fromStdin: boolean,
+  line: number,
+  io: UserIo,
+): Promise<string> {
+  let v: string;
+  if (fromStdin) v = await io.line(line);
+  else {
+    v = await askHidden(`${what}: `);
+    const again = await askHidden(`${what} again: `);
+    if (again !== v) throw new UsageError(`the two ${what}s differ`);
+  }
+  if (what === 'password' && v.length < 8)
+    throw new UsageError('the password must have at least 8 characters');
+  if (what === 'PIN' && !/^\d{4,12}$/.test(v)) throw new UsageError('the PIN must be 4 to 12 digits');
+  return v;
+}
+
+export async function main(
+  argv: string[],
+  env: NodeJS.ProcessEnv = process.env,
+  io: UserIo = processIo,
+): Promise<string> {
+  const args = [...argv];
+  const cwd = process.cwd();
+  const dataDir = dataDirPath({ env, cwd });
+  const file = usersFilePath({ dataDir, env, cwd });
+  const audit = new AuditLog(dataDir);
+  const cost = Number(env.SHOPDECK_BCRYPT_COST ?? 12);
+  const by = `${os.userInfo().username} (command line)`;
+  const fromStdin = flag(args, '--password-stdin');
+  const withPin = flag(args, '--pin');
+  const role = option(args, '--role');
+  const machines = option(args, '--machines');
+  const [command, name, extra] = args;
+  const users: UserRecord[] = readUsers(file) ?? [];
+  const find = (n: string | undefined): UserRecord => {
+    const u = users.find((x) => x.name === n);
+    if (!u) throw new UsageError(`no user "${n ?? ''}" in ${file}`);
+    return u;
+  };
+  const log = (
+    type: 'user-added' | 'user-removed' | 'role-change' | 'password-change',
+    user: string,
+    detail: string,
+    r?: Role,
+  ): void => {
+    audit.append({ type, result: 'ok', user, source: 'cli', detail: `${detail}, by ${by}`, role: r });
+  };
+
+  switch (command) {
+    case 'add': {
+      if (!name || !USER_NAME.test(name))
+        throw new UsageError('add: give a user name (letters, digits, . _ @ -)');
+      if (users.some((u) => u.name === name))
+        throw new UsageError(`user "${name}" exists: use role/passwd/pin/machines`);
+      const r = parseRole(role);
+      const password = await readSecret('password', fromStdin, 0, io);
+      const pin = withPin ? await readSecret('PIN', fromStdin, 1, io) : null;
+      const u: UserRecord = {
+        name,
+        role: r,
+        machines: parseMachines(machines),
+        passwordHash: await hashSecret(password, cost),
+        pinHash: pin ? await hashSecret(pin, cost) : null,
+      };
+      users.push(u);
+      writeUsers(file, users);
+      log('user-added', name, `added as ${r}${u.machines ? ` for ${u.machines.join(', ')}` : ''}`, r);
+      return `added ${name} (${r}) to ${file}${users.length === 1 ? '\naccess control is on: the console no longer runs open' : ''}`;
+    }
+    case 'role': {
+      const u = find(name);
+      const r = parseRole(extra ?? role);
+      const before = u.role;
+      u.role = r;
+      writeUsers(file, users);
+      log('role-change', u.name, `${before} → ${r}`, r);
+      return `${u.name}: ${before} → ${r}`;
+    }
+    case 'machines': {
+      const u = find(name);
+      u.machines = parseMachines(extra ?? machines ?? 'all');
+      writeUsers(file, users);
+      log('role-change', u.name, `machines: ${u.machines ? u.machines.join(', ') : 'all'}`, u.role);
+      return `${u.name}: machines ${u.machines ? u.machines.join(', ') : 'all'}`;
+    }
+    case 'passwd': {
+      const u = find(name);
+      u.passwordHash = await hashSecret(await readSecret('password', fromStdin, 0, io), cost);
+      writeUsers(file, users);
+      log('password-change', u.name, 'password changed');
+      return `${u.name}: password changed`;
+    }
+    case 'pin': {
+      const u = find(name);
+      u.pinHash = await hashSecret(await readSecret('PIN', fromStdin, 0, io), cost);
+      writeUsers(file, users);
+      log('password-change', u.name, 'PIN set');
+      return `${u.name}: PIN set${u.role === 'supervisor' ? '' : ' (only a supervisor PIN unlocks a tablet)'}`;
+    }
+    case 'remove': {
+      const u = find(name);
+      users.splice(users.indexOf(u), 1);
+      writeUsers(file, users);
+      log('user-removed', u.name, 'removed', u.role);
+      return `removed ${u.name}${users.length === 0 ? ' (no users left: nobody can log in; delete the file to run open)' : ''}`;
+    }
+    case 'list': {
+      if (!users.length) return `no users in ${file}: the console runs open`;
+      return users
+        .map(
+          (u) =>
+            `${u.name.padEnd(20)} ${u.role.padEnd(10)} ${u.machines ? u.machines.join(',') : 'all machines'}${u.pinHash ? '  (PIN)' : ''}`,
+        )
+        .join('\n');
+    }
+    default:
+      throw new UsageError(USAGE);
+  }
+}
+
+const isMain = process.argv[1] && /user\.ts$/.test(process.argv[1]);
+if (isMain) {
+  main(process.argv.slice(2))
+    .then((out) => {
+      console.log(out);
+      process.exit(0);
+    })
+    .catch((e: unknown) => {
+      console.error(e instanceof Error ? e.message : String(e));
+      process.exit(e instanceof UsageError ? 2 : 1);
+    });
+}

@@ -1,0 +1,166 @@
+import { useCallback, useEffect, useState, type FormEvent } from 'react';
+import { useStore } from 'zustand';
+import { authStore } from '../../fleet/auth';
+import { Badge, Button, Dialog, Field, Notice } from '../../ui';
+import { elevate, endElevation, fetchSession, logout, sessionExtra } from './api';
+import './auth.css';
+
+/** Pieces of the user menu: the supervisor PIN unlock on an operator's tablet, and a whole menu. */
+
+/** Elevation details come from `GET /api/session`: fetch them once if nobody has yet. */
+function useSessionExtra(): void {
+  const mode = useStore(authStore, (s) => s.mode);
+  const loaded = useStore(sessionExtra, (s) => s.loaded);
+  useEffect(() => {
+    if (mode === 'secured' && !loaded) void fetchSession().catch(() => undefined);
+  }, [mode, loaded]);
+}
+
+function useNow(everyMs: number): number {
+  const [now, setNow] = useState(() => Date.now());
+  useEffect(() => {
+    const t = setInterval(() => setNow(Date.now()), everyMs);
+    return () => clearInterval(t);
+  }, [everyMs]);
+  return now;
+}
+
+function PinDialog(props: { onDone: () => void }) {
+  const [name, setName] = useState('');
+  const [pin, setPin] = useState('');
+  const [busy, setBusy] = useState(false);
+  const [error, setError] = useState<string | null>(null);
+  const { onDone } = props;
+  const submit = async (e?: FormEvent) => {
+    e?.preventDefault();
+    if (busy) return;
+    setBusy(true);
+    setError(null);
+    try {
+      await elevate(name.trim(), pin);
+      onDone();
+    } catch (err) {
+      setPin('');
+      setError(err instanceof Error ? err.message : String(err));
+      setBusy(false);
+    }
+  };
+  return (
+    <Dialog
+      title="Supervisor unlock"
+      onCancel={onDone}
+      testId="pin-dialog"
+      actions={
+        <>
+          <Button onClick={onDone}>Cancel</Button>
+          <Button
+            variant="primary"
+            busy={busy}
+            disabled={busy || !name.trim() || !pin}
+            onClick={() => void submit()}
+          >
+            Unlock
+          </Button>
+        </>
+      }
+    >
+      <form onSubmit={(e) => void submit(e)} className="auth-form">
+        <p className="ui-muted">
+          A supervisor enters their name and PIN to act on this tablet for a few minutes. It then falls back
+          to the operator. Everything done meanwhile is logged under the supervisor’s name.
+        </p>
+        <Field label="Supervisor">
+          {(id) => (
+            <input
+              id={id}
+              className="ui-input"
+              autoComplete="off"
+              autoCapitalize="off"
+              value={name}
+              onChange={(e) => setName(e.target.value)}
+              data-autofocus
+            />
+          )}
+        </Field>
+        <Field label="PIN">
+          {(id) => (
+            <input
+              id={id}
+              className="ui-input auth-pin"
+              type="password"
+              inputMode="numeric"
+              autoComplete="off"
+              value={pin}
+              onChange={(e) => setPin(e.target.value.replace(/\D/g, ''))}
+            />
+          )}
+        </Field>
+        {error && <Notice tone="bad">{error}</Notice>}
+        <button type="submit" hidden />
+      </form>
+    </Dialog>
+  );
+}
+
+/**
+ * For an operator's (or viewer's) tablet: "Supervisor unlock" opens the PIN dialog; while
+ * unlocked it shows who unlocked it, until when, and "Lock now".
+ */
+export function PinUnlock(props: { compact?: boolean }) {
+  const mode = useStore(authStore, (s) => s.mode);
+  const user = useStore(authStore, (s) => s.user);
+  const elevation = useStore(sessionExtra, (s) => s.elevation);
+  const [open, setOpen] = useState(false);
+  const close = useCallback(() => setOpen(false), []);
+  const now = useNow(1000);
+  useSessionExtra();
+  if (mode !== 'secured' || !user) return null;
+  if (elevation) {
+    const left = Math.max(0, Math.round((elevation.until - now) / 1000));
+    return (
+      <div className="ui-row auth-elevation" data-testid="elevation">
+        <Badge tone="paused">
+          Unlocked by {elevation.supervisor} · {Math.floor(left / 60)}:{String(left % 60).padStart(2, '0')}{' '}
+          left
+        </Badge>
+        <Button small={props.compact} onClick={() => void endElevation()}>
+          Lock now
+        </Button>
+      </div>
+    );
+  }
+  if (user.role === 'supervisor') return null;
+  return (
+    <>
+      <Button small={props.compact} onClick={() => setOpen(true)} data-testid="pin-unlock">
+        Supervisor unlock
+      </Button>
+      {open && <PinDialog onDone={close} />}
+    </>
+  );
+}
+
+/** The whole user menu: who, role, PIN unlock, sign out. Renders nothing in open mode. */
+export function AuthMenu() {
+  const mode = useStore(authStore, (s) => s.mode);
+  const user = useStore(authStore, (s) => s.user);
+  const elevation = useStore(sessionExtra, (s) => s.elevation);
+  if (mode !== 'secured') return null;
+  if (!user) return <a href="/login">Sign in</a>;
+  return (
+    <div className="ui-row user-menu" data-testid="user-menu">
+      <span>{elevation ? elevation.operator : user.name}</span>
+      <Badge
+        tone={user.role === 'supervisor' ? 'paused' : user.role === 'operator' ? 'info' : 'muted'}
+        plain
+        testId="user-role"
+      >
+        {user.role}
+      </Badge>
+      <PinUnlock compact />
+      <Button small onClick={() => void logout().then(() => location.assign('/login'))}>
+        Sign out
+      </Button>
+    </div>
+  );
+}

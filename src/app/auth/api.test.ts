@@ -1,0 +1,86 @@
+import { afterEach, beforeEach, describe, expect, it, vi } from 'vitest';
+import { authStore } from '../../fleet/auth';
+import { auditQuery, elevate, fetchSession, sessionExtra, trackActivity } from './api';
+
+function json(body: unknown, status = 200): Response {
+  return new Response(JSON.stringify(body), { status, headers: { 'Content-Type': 'application/json' } });
+}
+
+describe('auth api', () => {
+  beforeEach(() => {
+    vi.useFakeTimers();
+    vi.setSystemTime(new Date('2026-01-05T10:00:00Z'));
+  });
+  afterEach(() => {
+    vi.useRealTimers();
+    vi.unstubAllGlobals();
+  });
+
+  it('a PIN unlock makes the supervisor the user until it runs out, then follows the gateway back', async () => {
+    authStore.setState({ mode: 'secured', user: { name: 'otto', role: 'operator', machines: null } });
+    const elevated = {
+      mode: 'secured',
+      user: { name: 'sam', role: 'supervisor', machines: null },
+      idleTimeoutS: 43200,
+      elevation: {
+        supervisor: 'sam',
+        until: '2026-01-05T10:05:00.000Z',
+        operator: { name: 'otto', role: 'operator', machines: null },
+      },
+    };
+    const back = {
+      mode: 'secured',
+      user: { name: 'otto', role: 'operator', machines: null },
+      idleTimeoutS: 43200,
+      elevation: null,
+    };
+    const fetchMock = vi.fn<typeof fetch>((url) =>
+      Promise.resolve(json(String(url) === '/api/elevate' ? elevated : back)),
+    );
+    vi.stubGlobal('fetch', fetchMock);
+    await elevate('sam', '4711');
+    expect(authStore.getState().user?.role).toBe('supervisor');
+    expect(sessionExtra.getState().elevation).toEqual({
+      supervisor: 'sam',
+      operator: 'otto',
+      until: Date.parse('2026-01-05T10:05:00Z'),
+    });
+    await vi.advanceTimersByTimeAsync(5 * 60_000 + 1000);
+    expect(fetchMock.mock.calls.map((c) => String(c[0]))).toEqual(['/api/elevate', '/api/session']);
+    expect(authStore.getState().user).toEqual({ name: 'otto', role: 'operator', machines: null });
+    expect(sessionExtra.getState().elevation).toBeNull();
+  });
+
+  it('reports user activity at most once a minute, only when signed in', async () => {
+    vi.stubGlobal(
+      'fetch',
+      vi.fn<typeof fetch>(() => Promise.resolve(json({ mode: 'secured', user: null }))),
+    );
+    await fetchSession();
+    const target = new EventTarget();
+    const stop = trackActivity(target as unknown as Window, 60_000);
+    const fetchMock = vi.fn<typeof fetch>(() => Promise.resolve(json({})));
+    vi.stubGlobal('fetch', fetchMock);
+    target.dispatchEvent(new Event('pointerdown'));
+    expect(fetchMock).not.toHaveBeenCalled();
+    authStore.setState({ mode: 'secured', user: { name: 'otto', role: 'operator', machines: null } });
+    target.dispatchEvent(new Event('pointerdown'));
+    target.dispatchEvent(new Event('keydown'));
+    expect(fetchMock).toHaveBeenCalledTimes(1);
+    expect(fetchMock.mock.calls[0]![0]).toBe('/api/session/activity');
+    vi.advanceTimersByTime(61_000);
+    target.dispatchEvent(new Event('keydown'));
+    expect(fetchMock).toHaveBeenCalledTimes(2);
+    stop();
+    vi.advanceTimersByTime(61_000);
+    target.dispatchEvent(new Event('keydown'));
+    expect(fetchMock).toHaveBeenCalledTimes(2);
+  });
+
+  it('builds audit queries with ISO times', () => {
+    expect(
+      auditQuery({ machine: ' laser-1 ', user: '', from: '2026-01-05T10:00:00Z' }, { offset: 50, limit: 50 }),
+    ).toBe('?machine=laser-1&from=2026-01-05T10%3A00%3A00.000Z&offset=50&limit=50');
+    expect(auditQuery({ to: 'not a date' })).toBe('');
+  });
+});
