@@ -20,7 +20,10 @@ const select = (x: MachineSnapshot) => ({
 
 function fleet(n: number) {
   const ctxs = Array.from({ length: n }, (_, i) =>
-    createContext({ id: `m${i}`, name: `M${i}`, kind: 'xtool', simulated: true }, { visibility: alwaysVisible }),
+    createContext(
+      { id: `m${i}`, name: `M${i}`, kind: 'xtool', simulated: true },
+      { visibility: alwaysVisible },
+    ),
   );
   let renders = 0;
   for (const ctx of ctxs) {
@@ -46,7 +49,10 @@ for (const n of [10, 100, 500]) {
   // One machine reports progress: only its own tile should notice.
   const one = measure(2000, () => {
     t++;
-    target.snapshot.setState({ job: { name: 'part.nc', progress: (t % 100) / 100, elapsed: t, remaining: 100 - t }, updatedAt: t });
+    target.snapshot.setState({
+      job: { name: 'part.nc', progress: (t % 100) / 100, elapsed: t, remaining: 100 - t },
+      updatedAt: t,
+    });
   });
   const before = f.renders();
   target.snapshot.setState({ updatedAt: -1 });
@@ -58,7 +64,11 @@ for (const n of [10, 100, 500]) {
   });
   results[n] = one.median_ms;
   report({ name: `one machine update, fleet of ${n}`, ...one, tile_renders_for_one_update: after - before });
-  report({ name: `full poll round, fleet of ${n}`, ...all, per_machine_us: round((all.median_ms / n) * 1000, 2) });
+  report({
+    name: `full poll round, fleet of ${n}`,
+    ...all,
+    per_machine_us: round((all.median_ms / n) * 1000, 2),
+  });
 }
 report({
   name: 'scaling: one-machine update cost 500 vs 10 machines (ratio, ~1 means independent)',

@@ -65,7 +65,9 @@ const md = [
   '',
   `| bench | ${keys.join(' | ')} |`,
   `|---|${keys.map(() => '---').join('|')}|`,
-  ...rows.map((r) => `| ${r.bench} | ${keys.map((k) => (r[k] === undefined ? '' : String(r[k]))).join(' | ')} |`),
+  ...rows.map(
+    (r) => `| ${r.bench} | ${keys.map((k) => (r[k] === undefined ? '' : String(r[k]))).join(' | ')} |`,
+  ),
   '',
 ].join('\n');
 writeFileSync(join(outDir, 'report.md'), md);
