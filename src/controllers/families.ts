@@ -1,11 +1,19 @@
 import type { FamilyDescriptor } from '../fleet/contract';
 import type { MachineKind } from '../fleet/types';
+import { duetFamily } from './duet/family';
+import { g2coreFamily } from './g2core/family';
+import { pruntFamily } from './prunt/family';
+import { touchcutFamily } from './touchcut/family';
 import { xtoolFamily } from './xtool/family';
 
 /**
  * Node-safe list of families: access rules, gateway hints, simulators. Used by the gateway,
  * `npm run sim` and the browser. Add a family here and in `index.ts`.
  */
-export const families: Partial<Record<MachineKind, FamilyDescriptor>> = {
+export const families: Record<MachineKind, FamilyDescriptor> = {
+  touchcut: touchcutFamily,
+  g2core: g2coreFamily,
+  duet: duetFamily,
   xtool: xtoolFamily,
+  prunt: pruntFamily,
 };
