@@ -1,13 +1,12 @@
 import { setupServer } from 'msw/node';
 import { afterAll, afterEach, beforeAll, beforeEach, describe, expect, it, vi } from 'vitest';
-import { CommandRefused, confirmationText, type Principal } from '../../fleet/commands';
+import { CommandRefused, commandHistory, confirmationText, type Principal } from '../../fleet/commands';
 import { createContext } from '../../fleet/fleet';
 import { alwaysVisible } from '../../fleet/link';
 import { simulatorHandlers } from '../../fleet/msw';
-import { xtoolSimulatorHandlers } from './sim/msw';
 import { FaultySimulator, jsonResponse, type Simulator } from '../../fleet/sim';
 import type { Role } from '../../fleet/types';
-import { POLL_BUSY_MS, POLL_IDLE_MS, XtoolSession } from './session';
+import { POLL_BUSY_MS, POLL_IDLE_MS, SETTINGS_REFRESH_MS, XtoolSession } from './session';
 import { XtoolSimulator } from './sim/simulator';
 
 const server = setupServer();
@@ -35,7 +34,7 @@ function setup(opts: { role?: Role; wrap?: (s: XtoolSimulator) => Simulator } = 
   const id = `laser-${++seq}`;
   sim = new XtoolSimulator({ id, name: 'Test laser' });
   const served = opts.wrap ? opts.wrap(sim) : sim;
-  server.use(...xtoolSimulatorHandlers(id, served));
+  server.use(...simulatorHandlers(id, served));
   const principal = (): Principal => ({ name: 'tester', role: opts.role ?? 'supervisor' });
   const ctx = createContext(
     { id, name: 'Test laser', kind: 'xtool', simulated: true },
@@ -114,6 +113,28 @@ describe('XtoolSession against the simulator', () => {
     expect(session.client.maxInFlight).toBe(1);
   });
 
+  it("the simulator's demo control shows as a job loaded, then running from the button", async () => {
+    const { sim, session, ctx } = setup({ role: 'viewer' });
+    session.start();
+    await until(() => session.detail.getState().socketOpen);
+    const demo = sim.controls().find((c) => c.id === 'demo');
+    expect(demo?.label).toBe('Start a demo job');
+    demo?.run();
+    await until(() => session.detail.getState().machine.state === 'job-loaded');
+    await until(() => ctx.snapshot.getState().activity === 'running');
+    expect(session.detail.getState().machine.startedBy).toBe('button');
+    // The vendor app's upload is /tmp.gcode (filetype 1).
+    expect(ctx.snapshot.getState().job?.name).toBe('tmp.gcode');
+    await advance(60_000);
+    const snap = ctx.snapshot.getState();
+    expect(snap.activity).toBe('running');
+    expect(snap.job?.progress).toBeGreaterThan(0.1);
+    expect(snap.job?.progress).toBeLessThan(0.5);
+    expect(snap.job?.remaining).toBeGreaterThan(60);
+    // Nothing went through the console: no command was run.
+    expect(commandHistory.getState().records.filter((r) => r.machineId === ctx.machine.id)).toEqual([]);
+  });
+
   it('polls every 3 s while busy and every 10 s when idle', async () => {
     const { sim, session } = setup();
     session.start();
@@ -150,6 +171,19 @@ describe('XtoolSession against the simulator', () => {
     expect(ctx.log.store.getState().entries.some((e) => /Alarm acknowledged/.test(e.text))).toBe(true);
   });
 
+  it('re-reads the safety settings while idle, so a change made elsewhere shows', async () => {
+    const { sim, session, ctx } = setup();
+    session.start();
+    await until(() => ctx.snapshot.getState().link === 'online');
+    expect(session.detail.getState().periphery?.flameAlarmSensitivity).toBe(1);
+    // Someone turns the flame alarm off with the vendor app, and pulls the SD card.
+    sim.periphery.flameAlarmSensitivity = 3;
+    sim.sdCard = false;
+    await advance(SETTINGS_REFRESH_MS + POLL_IDLE_MS + 500);
+    expect(session.detail.getState().periphery).toMatchObject({ flameAlarmSensitivity: 3, sdCard: false });
+    expect(session.client.maxInFlight).toBe(1);
+  });
+
   it('a sensor that is switched off does not trip', async () => {
     const { sim, session, ctx } = setup();
     session.start();
@@ -175,6 +209,10 @@ describe('XtoolSession against the simulator', () => {
     expect(session.detail.getState().upload).toMatchObject({ phase: 'done', path: '/tmp.gcode' });
     await until(() => session.detail.getState().machine.state === 'job-loaded');
     expect(ctx.snapshot.getState().job?.name).toBe('coaster.gcode');
+    // The name is forgotten when the laser is idle again: the next job is not "coaster.gcode".
+    await ctx.commands.run(session.stopJob, undefined);
+    await until(() => session.detail.getState().machine.state === 'idle');
+    expect(session.detail.getState().jobName).toBeNull();
   });
 
   it('catches the lying "ok" of a failed upload', async () => {
@@ -244,7 +282,7 @@ describe('link and firmware', () => {
   it('polls at most every 10 s while the page is hidden, even with a job running', async () => {
     const id = `laser-${++seq}`;
     sim = new XtoolSimulator({ id, name: 'Hidden' });
-    server.use(...xtoolSimulatorHandlers(id, sim));
+    server.use(...simulatorHandlers(id, sim));
     const hidden = { hidden: () => true, subscribe: () => () => undefined };
     const ctx = createContext({ id, name: 'Hidden', kind: 'xtool', simulated: true }, { visibility: hidden });
     session = new XtoolSession(ctx);

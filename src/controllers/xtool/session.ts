@@ -32,6 +32,13 @@ import {
 /** Poll intervals (issue 4): every 3 s while a job is loaded or running, every 10 s when idle. */
 export const POLL_BUSY_MS = 3000;
 export const POLL_IDLE_MS = 10_000;
+/**
+ * Settings (/peripherystatus: SD card, safety switches, flame alarm) are re-read this often while
+ * the laser is idle: the vendor app or the machine itself may change them, and a safety page
+ * showing "flame alarm: high" after someone turned it off elsewhere is worse than one more request
+ * a minute. Decision: not while busy, to keep the ESP32's lane free for the job polls.
+ */
+export const SETTINGS_REFRESH_MS = 60_000;
 
 export interface Identity {
   type: string | null;
@@ -148,6 +155,18 @@ function parentDir(path: string): string {
   return i <= 0 ? '/' : path.slice(0, i);
 }
 
+/**
+ * The job name to show after a state change. The laser never names its job: a name we learnt (our
+ * upload, our remote start) is forgotten once the laser is idle, so the next job started from the
+ * vendor app is not shown under the old name. A job loaded by software is the uploaded
+ * /tmp.gcode (document: "Type 1 = /tmp.gcode"), so that is its name when we know no better.
+ */
+function jobNameAfter(name: string | null, m: MachineState): string | null {
+  if (m.state === 'idle' || m.state === 'alarm' || m.state === 'error') return null;
+  if (name === null && m.state === 'job-loaded') return 'tmp.gcode';
+  return name;
+}
+
 function checkByte(value: number, what: string): void {
   if (!Number.isInteger(value) || value < 0 || value > 255) {
     throw new LinkError('vendor', `${what} must be a whole number from 0 to 255 (got ${value})`);
@@ -170,6 +189,7 @@ export class XtoolSession implements MachineSession {
   private connected = false;
   private retryDelay = 1000;
   private pollStartedAt = 0;
+  private settingsAt = 0;
   private stopped = true;
 
   constructor(readonly ctx: SessionContext) {
@@ -292,9 +312,18 @@ export class XtoolSession implements MachineSession {
     const frameWins = s.lastFrame !== null && s.lastFrame.at >= this.pollStartedAt;
     const machine = frameWins ? s.machine : applyPoll(s.machine, working.code, progress, s.progress);
     if (working.code === 'unknown') this.ctx.log.warn('protocol', `Unknown working state "${working.raw}"`);
-    this.set({ working, progress, machine, source: frameWins ? s.source : 'poll' });
+    this.set({
+      working,
+      progress,
+      machine,
+      source: frameWins ? s.source : 'poll',
+      jobName: jobNameAfter(s.jobName, machine),
+    });
     if (this.connected) this.link.ok(this.derived());
     else this.link.patch(this.derived());
+    if (this.connected && !isBusy(machine.state) && this.ctx.now() - this.settingsAt >= SETTINGS_REFRESH_MS) {
+      await this.refreshSettings();
+    }
   }
 
   private pollFailed(e: unknown): void {
@@ -311,6 +340,7 @@ export class XtoolSession implements MachineSession {
 
   /** Re-read /peripherystatus, offset and dot mode. */
   async refreshSettings(): Promise<void> {
+    this.settingsAt = this.ctx.now();
     const periphery = await this.client.peripheryStatus().catch((e: unknown) => {
       if (e instanceof LinkError && e.kind === 'vendor') return null;
       throw e;
@@ -366,7 +396,12 @@ export class XtoolSession implements MachineSession {
     }
     const before = this.detail.getState().machine;
     const machine = applyFrame(before, f);
-    this.set({ machine, lastFrame: { raw: f.raw, at }, source: 'socket' });
+    this.set((s) => ({
+      machine,
+      lastFrame: { raw: f.raw, at },
+      source: 'socket',
+      jobName: jobNameAfter(s.jobName, machine),
+    }));
     this.ctx.log.add(f.kind === 'sensor' || f.kind === 'error' ? 'error' : 'info', 'controller', f.raw);
     const alarm = alarmForFrame(f, at);
     const alarms = alarm ? raiseAlarm(this.ctx.snapshot.getState().alarms, alarm) : undefined;

@@ -28,6 +28,11 @@ describe('frames drive the state', () => {
     expect(toActivity(loaded.state)).toBe('idle');
     const running = run(['ok:WORKING_ONLINE\n'], loaded);
     expect(toActivity(running.state)).toBe('running');
+    // A loaded job only starts with the button: not "started remotely".
+    expect(running.startedBy).toBe('button');
+    expect(stateLabel(running)).toMatch(/button/);
+    // From idle, WORKING_ONLINE is a remote start (/read).
+    expect(run(['ok:IDLE\n', 'ok:WORKING_ONLINE\n']).startedBy).toBe('api');
     const paused = run(['ok:PAUSING\n'], running);
     expect(paused.state).toBe('paused');
     expect(toActivity(paused.state)).toBe('paused');

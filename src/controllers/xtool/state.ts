@@ -59,9 +59,14 @@ export function applyFrame(cur: MachineState, f: XtoolFrame): MachineState {
         case 'idle':
           return { state: 'idle', startedBy: null, sensor: null };
         case 'running-online':
-          // Software-uploaded job: started by /read (api) or with the button after an upload;
-          // keep what we knew, the next poll ("1" or "2") says which.
-          return { state: 'running', startedBy: cur.startedBy ?? 'api', sensor: null };
+          // Software-uploaded job: started by /read (api) or with the button after an upload.
+          // A loaded job waits for the button (ok:WORKING_ONLINE_READY), so starting from there
+          // is the button; otherwise keep what we knew, the next poll ("1" or "2") says which.
+          return {
+            state: 'running',
+            startedBy: cur.state === 'job-loaded' ? 'button' : (cur.startedBy ?? 'api'),
+            sensor: null,
+          };
         case 'running-offline':
           return { state: 'running', startedBy: 'button', sensor: null };
         case 'job-loaded':

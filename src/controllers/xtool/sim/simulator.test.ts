@@ -1,6 +1,14 @@
 import { afterEach, beforeEach, describe, expect, it, vi } from 'vitest';
 import type { SimSocket } from '../../../fleet/sim';
-import { FRAMING_MS, LINES_PER_SECOND, STOP_MS, XtoolSimulator } from './simulator';
+import {
+  DEMO_JOB_LINES,
+  DEMO_PRESS_MS,
+  DEMO_REST_MS,
+  FRAMING_MS,
+  LINES_PER_SECOND,
+  STOP_MS,
+  XtoolSimulator,
+} from './simulator';
 
 let sim: XtoolSimulator;
 beforeEach(() => {
@@ -119,5 +127,73 @@ describe('XtoolSimulator', () => {
     expect((await get('/delete?file=/jobs/coaster.gcode')).body.result).toBe('ok');
     expect((await get('/delete?file=/jobs')).body.result).toBe('ok');
     expect((await get('/read?file=/nope.gcode')).body.result).toBe('fail');
+  });
+});
+
+describe('the demo control', () => {
+  const control = (id: string) => {
+    const c = sim.controls().find((x) => x.id === id);
+    if (!c) throw new Error(`no control ${id}`);
+    return c;
+  };
+
+  it('loads a job, presses the button, runs for minutes and starts again', async () => {
+    const frames = listen();
+    expect(control('demo').label).toBe('Start a demo job');
+    control('demo').run();
+    // The vendor app loaded the job: the laser waits for the button ("2" = loaded, waiting).
+    expect(frames).toEqual(['ok:WORKING_ONLINE_READY\n']);
+    expect(sim.mode).toBe('job-loaded');
+    expect((await get('/system?action=get_working_sta')).body.working).toBe('2');
+    vi.advanceTimersByTime(DEMO_PRESS_MS + 300);
+    // The operator pressed the button: an uploaded job started by the button.
+    expect(frames.at(-1)).toBe('ok:WORKING_ONLINE\n');
+    expect(sim.mode).toBe('running');
+    expect((await get('/system?action=get_working_sta')).body.working).toBe('2');
+    vi.advanceTimersByTime(120_000);
+    const half = await get('/progress');
+    expect(sim.mode).toBe('running');
+    expect(Number(half.body.progress)).toBeGreaterThan(30);
+    expect(Number(half.body.progress)).toBeLessThan(70);
+    expect(Number(half.body.working)).toBeGreaterThanOrEqual(120_000);
+    // Finishes after DEMO_JOB_LINES lines, rests, and the next piece starts.
+    vi.advanceTimersByTime((DEMO_JOB_LINES / LINES_PER_SECOND) * 1000 - 120_000 + 500);
+    expect(sim.mode).toBe('idle');
+    expect(frames.at(-1)).toBe('ok:IDLE\n');
+    vi.advanceTimersByTime(DEMO_REST_MS + DEMO_PRESS_MS + 600);
+    expect(sim.mode).toBe('running');
+    expect(frames.slice(-3)).toEqual(['ok:IDLE\n', 'ok:WORKING_ONLINE_READY\n', 'ok:WORKING_ONLINE\n']);
+    expect(Number((await get('/progress')).body.progress)).toBeLessThan(5);
+    // Only the simulator's own state: nothing was sent as G-code.
+    expect(sim.gcode).toEqual([]);
+  });
+
+  it('ends when the job is stopped or a sensor trips, not just when it finishes', async () => {
+    control('demo').run();
+    vi.advanceTimersByTime(DEMO_PRESS_MS + 1000);
+    expect(sim.mode).toBe('running');
+    expect((await get('/cnc/data?action=stop')).body.result).toBe('ok');
+    vi.advanceTimersByTime(STOP_MS + DEMO_REST_MS + DEMO_PRESS_MS + 1000);
+    expect(sim.mode).toBe('idle');
+    expect(sim.demoRunning).toBe(false);
+
+    control('demo').run();
+    vi.advanceTimersByTime(DEMO_PRESS_MS + 1000);
+    expect(sim.trip('flame')).toBe(true);
+    vi.advanceTimersByTime(DEMO_REST_MS + DEMO_PRESS_MS + 1000);
+    expect(sim.mode).toBe('idle');
+    expect(sim.demoRunning).toBe(false);
+  });
+
+  it('keeps a job that is already running and continues after it', () => {
+    sim.loadDemoJob(100);
+    sim.pressButton();
+    control('demo').run();
+    expect(sim.mode).toBe('running');
+    vi.advanceTimersByTime(6000);
+    expect(sim.mode).toBe('idle');
+    vi.advanceTimersByTime(DEMO_REST_MS + DEMO_PRESS_MS + 600);
+    expect(sim.mode).toBe('running');
+    expect(sim.job?.lines).toBeGreaterThan(1000);
   });
 });

@@ -39,6 +39,12 @@ export const FRAME_TERMINATOR = '\n';
 export const LINES_PER_SECOND = 20;
 export const STOP_MS = 1000;
 export const FRAMING_MS = 4000;
+/** The demo job (`demo` control): 4800 lines at LINES_PER_SECOND, four minutes of engraving. */
+export const DEMO_JOB_LINES = 4800;
+/** Demo: the operator walks to the machine and presses its button this long after the job is loaded. */
+export const DEMO_PRESS_MS = 3000;
+/** Demo: the next job is loaded this long after the last one finished (the piece is swapped). */
+export const DEMO_REST_MS = 10_000;
 
 const JSON_NO_TYPE = null;
 const ok = () => jsonResponse({ result: 'ok' }, 200, JSON_NO_TYPE);
@@ -65,6 +71,11 @@ export class XtoolSimulator implements Simulator {
   private last: number;
   private stopAt = 0;
   private framingUntil = 0;
+  /**
+   * The `demo` control's loop: load a job, press the button, and when the job finishes load the
+   * next one. Null when no demo runs. Only the simulator's own state changes; nothing is sent.
+   */
+  private demo: { pressAt: number | null; loadAt: number | null } | null = null;
   private readonly timer: ReturnType<typeof setInterval>;
 
   constructor(readonly opts: SimOptions) {
@@ -93,7 +104,10 @@ export class XtoolSimulator implements Simulator {
     if (this.mode === 'running' && job) {
       job.elapsedMs += dt;
       job.line = Math.min(job.lines, job.line + (dt * LINES_PER_SECOND) / 1000);
-      if (job.line >= job.lines) this.enter('idle', 'ok:IDLE');
+      if (job.line >= job.lines) {
+        this.enter('idle', 'ok:IDLE');
+        if (this.demo) this.demo = { pressAt: null, loadAt: t + DEMO_REST_MS };
+      }
     } else if (this.mode === 'paused' && job) {
       job.elapsedMs += dt;
     } else if (this.mode === 'stopping' && t >= this.stopAt) {
@@ -101,6 +115,46 @@ export class XtoolSimulator implements Simulator {
     } else if (this.mode === 'framing' && t >= this.framingUntil) {
       this.enter('frame-ready', 'ok:WORKING_FRAME_READY');
     }
+    this.demoStep(t);
+  }
+
+  /** One step of the demo loop, from tick(). */
+  private demoStep(t: number): void {
+    const d = this.demo;
+    if (!d) return;
+    if (d.loadAt !== null && t >= d.loadAt) {
+      d.loadAt = null;
+      // Someone else loaded or started something meanwhile: leave the machine to them.
+      if (this.mode !== 'idle') return void (this.demo = null);
+      this.loadDemoJob(DEMO_JOB_LINES);
+      d.pressAt = t + DEMO_PRESS_MS;
+    } else if (d.pressAt !== null && t >= d.pressAt) {
+      d.pressAt = null;
+      if (this.mode !== 'job-loaded') return void (this.demo = null);
+      this.pressButton();
+    }
+  }
+
+  /**
+   * The `demo` control: the machine looks busy as a real one in use would. The vendor app loads a
+   * job (ok:WORKING_ONLINE_READY), the operator presses the button a moment later, the job runs
+   * for a few minutes, and after a short rest the next piece starts. Decision: a job that ends any
+   * other way than finishing (stopped from the console or the button, a sensor alarm, ok:ERROR)
+   * ends the demo: a real operator does not start the next piece after a stop or a flame.
+   */
+  startDemo(): void {
+    if (this.busy || this.mode === 'job-loaded' || this.mode === 'frame-ready') {
+      // Already busy: keep it going when the current job finishes.
+      this.demo = { pressAt: this.mode === 'job-loaded' ? this.now() + DEMO_PRESS_MS : null, loadAt: null };
+      return;
+    }
+    this.demo = { pressAt: null, loadAt: this.now() };
+    this.demoStep(this.now());
+  }
+
+  /** Whether the demo loop runs (for tests and the control's label). */
+  get demoRunning(): boolean {
+    return this.demo !== null;
   }
 
   private enter(mode: SimMode, frame: string | null): void {
@@ -126,6 +180,7 @@ export class XtoolSimulator implements Simulator {
   }
 
   private beginStop(frame: string): void {
+    this.demo = null;
     this.stopAt = this.now() + STOP_MS;
     this.enter('stopping', frame);
   }
@@ -172,6 +227,7 @@ export class XtoolSimulator implements Simulator {
             ? Number(p.movingStopFlag) === 1
             : Number(p.limitStopFlag) === 1;
     if (!on) return false;
+    this.demo = null;
     // The document: the sensor frame; the job is aborted and the machine is idle again.
     this.mode = 'idle';
     this.broadcast(`err:${sensor}Check`);
@@ -179,14 +235,19 @@ export class XtoolSimulator implements Simulator {
   }
 
   /** Load a job as the vendor software would: upload /tmp.gcode, wait for the button. */
-  loadDemoJob(): void {
+  loadDemoJob(lines?: number): void {
     if (this.busy) return;
-    this.files.set('/tmp.gcode', demoJob());
+    this.files.set('/tmp.gcode', demoJob(lines));
     this.enter('job-loaded', 'ok:WORKING_ONLINE_READY');
   }
 
   controls(): SimControl[] {
     return [
+      {
+        id: 'demo',
+        label: 'Start a demo job',
+        run: () => this.startDemo(),
+      },
       { id: 'load-job', label: 'Load a demo job (as the vendor app would)', run: () => this.loadDemoJob() },
       { id: 'button', label: 'Press the button on the machine', run: () => this.pressButton() },
       { id: 'hold-button', label: 'Hold the button 3 s (cancel)', run: () => this.holdButton() },
@@ -199,6 +260,7 @@ export class XtoolSimulator implements Simulator {
         label: 'Generic controller error',
         run: () => {
           this.mode = 'idle';
+          this.demo = null;
           this.broadcast('ok:ERROR');
         },
       },

@@ -157,14 +157,14 @@ export function Safety({ session }: TabProps<XtoolSession>) {
         <ByteSetting
           session={session}
           label="Tilt threshold"
-          hint="0–255, default 15. Higher means the laser tolerates more tilt before it stops."
+          hint="0–255, default 15. The document does not say which way is more sensitive: stay near the default."
           current={p?.tiltThreshold}
           command={session.tiltThreshold}
         />
         <ByteSetting
           session={session}
           label="Movement threshold"
-          hint="0–255, default 40. Higher means the laser tolerates more movement before it stops."
+          hint="0–255, default 40. The document does not say which way is more sensitive: stay near the default."
           current={p?.movingThreshold}
           command={session.movingThreshold}
         />
