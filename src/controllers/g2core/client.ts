@@ -8,6 +8,7 @@ import {
   jobResponse,
   machineTreeResponse,
   machineValueResponse,
+  operationListResponse,
   operationResponse,
   shallowResponse,
   statusReportResponse,
@@ -51,6 +52,11 @@ import {
  *     the code from the status-code table, then the additional description.
  *  7. Alarm clear is the firmware's `{"clear":null}` as a resource read: `GET /machine/clear`
  *     (a GET that is a command: audited, operator role).
+ *  8. `GET /operation` lists the operations the server knows (unfinished first, in the order
+ *     they run, then recent finished ones), each as `GET /operation/{id}` answers with its `id`.
+ *     The design has no machine-wide feedhold, so this is how a console finds motion that
+ *     another console started and holds or kills it. A server without it answers 404/405; the
+ *     console then can only hold what it started itself, and says so.
  */
 
 export type FilterSpec = Record<string, Scalar | Record<string, Scalar>>;
@@ -187,6 +193,14 @@ export class G2coreClient {
       { method: 'POST', path: '/operation', json: { optype: 'sendfile', value: jobId }, commandId },
       createdId,
     );
+  }
+
+  /**
+   * Every operation the server knows, unfinished ones first (settled point 8): lets any console
+   * hold or kill motion that another console started.
+   */
+  operations(signal?: AbortSignal): Promise<Operation[]> {
+    return this.http.json({ path: '/operation', signal }, operationListResponse);
   }
 
   operation(id: string, signal?: AbortSignal): Promise<Operation> {

@@ -231,4 +231,98 @@ describe('G2coreSession through msw', () => {
     expect(snap.problem?.path).toBe('posx');
     s.stop();
   });
+  it('finds motion another console started (GET /operation) and holds and kills it', async () => {
+    const s = makeSession();
+    await settle();
+    // Another console runs a long move: this session started nothing.
+    const res = await sim.fetch(
+      new Request('http://sim/operation', {
+        method: 'POST',
+        body: JSON.stringify({ optype: 'run', value: ['G1 X200 F300'] }),
+      }),
+      '/operation',
+    );
+    const id = String(await res.json());
+    await settle(2500);
+    expect(s.ctx.snapshot.getState().activity).toBe('running');
+    expect(s.feedhold.available?.(s.ctx.snapshot.getState())).toBe(true);
+    expect(s.detail.getState().ops[id]?.label).toContain('started elsewhere');
+    await s.ctx.commands.run(s.feedhold, undefined);
+    await settle();
+    expect(sim.stat).toBe(6);
+    await s.ctx.commands.run(s.kill, undefined);
+    await settle();
+    expect(sim.stat).toBe(4);
+    const op = (await (
+      await sim.fetch(new Request(`http://sim/operation/${id}`), `/operation/${id}`)
+    ).json()) as {
+      opstate: string;
+      error: { code: number };
+    };
+    expect([op.opstate, op.error.code]).toEqual(['error', 207]);
+    s.stop();
+  });
+
+  it('says so when the server cannot list operations', async () => {
+    const inner = sim.fetch.bind(sim);
+    sim.fetch = (req, path) =>
+      path === '/operation' && req.method === 'GET'
+        ? Promise.resolve(
+            new Response(
+              JSON.stringify({ status: { code: 100, description: 'Unrecognized command or config name' } }),
+              {
+                status: 404,
+                headers: { 'Content-Type': 'application/json' },
+              },
+            ),
+          )
+        : inner(req, path);
+    const s = makeSession();
+    await settle();
+    await inner(
+      new Request('http://sim/operation', {
+        method: 'POST',
+        body: JSON.stringify({ optype: 'run', value: 'G1 X200 F300' }),
+      }),
+      '/operation',
+    );
+    await settle(2500);
+    expect(s.opsListSupported).toBe(false);
+    expect(s.feedhold.available?.(s.ctx.snapshot.getState())).toMatch(/cannot list its operations/);
+    s.stop();
+  });
+  it('MDI waits for no job: refused while a job runs, allowed behind its own lines', async () => {
+    const s = makeSession();
+    await settle();
+    await s.ctx.commands.run(s.mdi, { text: 'G1 X50 F300' });
+    await settle(1500);
+    expect(s.ctx.snapshot.getState().activity).toBe('running');
+    expect(s.mdi.available?.(s.ctx.snapshot.getState())).toBe(true);
+    await s.ctx.commands.run(s.kill, undefined);
+    await settle();
+    await s.ctx.commands.run(s.queueJob, { name: 'long.nc', gcode: 'G1 X100 F300' });
+    const job = s.detail.getState().jobs[0]!;
+    await s.ctx.commands.run(s.runJob, { id: job.id, name: 'long.nc' });
+    await settle(1500);
+    expect(s.mdi.available?.(s.ctx.snapshot.getState())).toMatch(/Not while job "long.nc" runs/);
+    await expect(s.ctx.commands.run(s.mdi, { text: 'G0 X0' })).rejects.toThrow();
+    s.stop();
+  });
+  it('the big STOP also stops a job in motion (homing inside the demo job)', async () => {
+    const s = makeSession();
+    await settle();
+    expect(s.ctx.commands.blockedReason(s.stopJog)).toBe('Nothing is moving');
+    sim
+      .controls()
+      .find((c) => c.id === 'demo')!
+      .run();
+    await settle(1500);
+    expect(sim.stat).toBe(9);
+    expect(s.ctx.commands.blockedReason(s.stopJog)).toBeNull();
+    await s.ctx.commands.run(s.stopJog, undefined);
+    await settle();
+    expect(sim.stat).toBe(4);
+    expect(s.detail.getState().jobs[0]?.state.state).toBe('killed');
+    s.stop();
+  });
 });

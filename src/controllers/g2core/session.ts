@@ -34,7 +34,7 @@ const IDLE = new Set([1, 3, 4]);
 export interface TrackedOp {
   id: string;
   /** What the console started it for ("jog X+10", "MDI", "home"). */
-  purpose: 'jog' | 'home' | 'mdi' | 'clear';
+  purpose: 'jog' | 'home' | 'mdi' | 'clear' | 'other';
   label: string;
   lines: string[];
   op: Operation | null;
@@ -237,10 +237,14 @@ export class G2coreSession implements MachineSession {
     const idle = (s: MachineSnapshot): true | string => {
       const st = stat(s);
       if (st === null) return 'No status yet';
-      return IDLE.has(st) ? true : `Not while the machine is ${statLabel(st).toLowerCase()}`;
+      return IDLE.has(st) ? true : `Only while idle (the machine is in ${statLabel(st)})`;
     };
-    const inMotion = (): true | string =>
-      this.activeTarget() ? true : 'Nothing started from this console is running';
+    const inMotion = (): true | string => {
+      if (this.activeTarget()) return true;
+      return this.opsListSupported
+        ? 'Looking for the operation that moves the machine…'
+        : 'Started elsewhere and this controller cannot list its operations: hold it where it was started or at the machine';
+    };
 
     this.feedhold = {
       id: 'g2core.feedhold',
@@ -283,10 +287,17 @@ export class G2coreSession implements MachineSession {
       hazard: 'stop',
       role: 'operator',
       confirm: false,
-      available: () => (this.activeJog() ? true : 'No jog or homing is running'),
+      // The big STOP stops whatever moves: the jog or homing first, else the job or operation
+      // in motion (a STOP that stays grey while the machine moves would be worse than none).
+      available: (s) => {
+        if (this.activeJog()) return true;
+        const st = stat(s);
+        if (st === null || !MOVING.has(st)) return 'Nothing is moving';
+        return inMotion();
+      },
       perform: async (_a, c) => {
         const op = this.activeJog();
-        if (!op) return 'nothing to stop';
+        if (!op) return this.controlActive('kill', c.commandId);
         await this.client.controlOperation(op.id, 'kill', c.commandId);
         this.poller.kick();
         return `${op.label} stopped`;
@@ -349,7 +360,16 @@ export class G2coreSession implements MachineSession {
         const st = stat(s);
         if (st === null) return 'No status yet';
         if (st === STAT_ALARM || st === STAT_SHUTDOWN || st === STAT_PANIC) return 'Clear the alarm first';
-        return true;
+        // Lines sent now would wait behind the motion in progress and run later, maybe unattended:
+        // only while idle, or behind this console's own MDI lines (a sequence typed on purpose).
+        const job = this.detail
+          .getState()
+          .jobs.find((j) => j.state.state === 'running' || j.state.state === 'paused');
+        if (job) return `Not while job "${job.name ?? job.id}" runs: the lines would wait until it ends`;
+        if (IDLE.has(st)) return true;
+        const t = this.activeTarget();
+        if (t?.kind === 'op' && this.detail.getState().ops[t.id]?.purpose === 'mdi') return true;
+        return `Only while idle (the machine is in ${statLabel(st)}): the lines would wait behind the motion`;
       },
       perform: (a, c) => this.sendMdi(a.text, c.commandId),
     };
@@ -471,7 +491,10 @@ export class G2coreSession implements MachineSession {
     const changed = Object.entries(update).some(([k, v]) => sr[k] !== v);
     if (changed) this.detail.setState({ sr: { ...sr, ...update } });
     const slow = this.polls % SLOW_EVERY === 1 || Object.keys(update).includes('stat');
-    if (slow) await Promise.all([this.refreshOps(), this.refreshJobs()]);
+    if (slow) {
+      await Promise.all([this.refreshOps(), this.refreshJobs()]);
+      await this.adoptForeignOps();
+    }
     this.publish();
   }
 
@@ -593,6 +616,67 @@ export class G2coreSession implements MachineSession {
     }
   }
 
+  /** False once the server said it has no `GET /operation` (404/405): settled point 8 in client.ts. */
+  opsListSupported = true;
+
+  /**
+   * The machine moves but nothing this console knows of does (another console's MDI or jog, or
+   * a page reloaded mid-move): find the operation with `GET /operation` and track it, so that
+   * Feedhold, Cycle start and Kill act on it. Jobs need nothing: every console sees them.
+   */
+  private async adoptForeignOps(): Promise<void> {
+    const d = this.detail.getState();
+    const st = num(d.sr.stat);
+    if (!this.opsListSupported || st === null || !MOVING.has(st)) return;
+    if (d.jobs.some((j) => j.state.state === 'running' || j.state.state === 'paused')) return;
+    const moving = (t: TrackedOp) => t.op?.opstate.state === 'run' || t.op?.opstate.state === 'pause';
+    if (Object.values(d.ops).some(moving)) return;
+    let list: Operation[];
+    try {
+      list = await this.client.operations();
+    } catch (e) {
+      if (e instanceof LinkError && (e.status === 404 || e.status === 405)) {
+        this.opsListSupported = false;
+        this.ctx.log.warn(
+          'protocol',
+          `GET /operation is not supported (${describeError(e)}): motion started elsewhere cannot be held from here`,
+        );
+      }
+      return;
+    }
+    const now = this.ctx.now();
+    const found: Record<string, TrackedOp> = {};
+    list.forEach((op, i) => {
+      const state = op.opstate.state;
+      if (op.id === undefined || op.optype === 'sendfile') return;
+      if (state !== 'run' && state !== 'pause' && state !== 'pend') return;
+      const id = String(op.id);
+      if (this.detail.getState().ops[id]) return;
+      const lines = Array.isArray(op.value)
+        ? op.value
+        : typeof op.value === 'string'
+          ? op.value.split(/\r?\n/)
+          : [];
+      // Keep the server's order (the running one first) ahead of anything tracked already.
+      found[id] = {
+        id,
+        purpose: 'other',
+        label: `operation ${id} (started elsewhere)`,
+        lines,
+        op,
+        startedAt: now - 1_000_000 + i,
+      };
+    });
+    if (Object.keys(found).length === 0) return;
+    this.detail.setState((s) => ({ ops: pruneOps({ ...s.ops, ...found }) }));
+    this.ctx.log.info(
+      'console',
+      `Tracking ${Object.values(found)
+        .map((t) => t.label)
+        .join(', ')}`,
+    );
+  }
+
   private updateOp(id: string, op: Operation | null, gone = false): void {
     const t = this.detail.getState().ops[id];
     if (!t) return;
@@ -643,9 +727,11 @@ export class G2coreSession implements MachineSession {
     const d = this.detail.getState();
     const job = d.jobs.find((j) => j.state.state === 'running' || j.state.state === 'paused');
     if (job) return { kind: 'job', id: job.id, label: `job "${job.name ?? job.id}"` };
+    // The operation in motion (or held) first, else the oldest unfinished one.
+    const rank = (t: TrackedOp) => (t.op?.opstate.state === 'run' || t.op?.opstate.state === 'pause' ? 0 : 1);
     const ops = Object.values(d.ops)
       .filter((t) => !finished(t.op))
-      .sort((a, b) => a.startedAt - b.startedAt);
+      .sort((a, b) => rank(a) - rank(b) || a.startedAt - b.startedAt);
     const op = ops[0];
     return op ? { kind: 'op', id: op.id, label: op.label } : null;
   }

@@ -15,6 +15,7 @@ import {
   valueForKey,
   versionResponse,
   jobListResponse,
+  operationListResponse,
   operationResponse,
 } from './wire';
 
@@ -173,5 +174,21 @@ describe('leniency', () => {
     });
     const op = operationResponse.parse({ opstate: 'RUN', value: ['G0 X1'], line: 0 });
     expect(op.opstate.state).toBe('run');
+  });
+});
+
+describe('operation list (GET /operation, settled by the console)', () => {
+  it('accepts a bare array or a value envelope; unknown opstates stay explicit', () => {
+    const bare = operationListResponse.parse([
+      { id: 43, optype: 'run', opstate: 'run', value: ['G1 X10 F300'], line: 0 },
+      { id: 42, optype: 'run', opstate: 'SOMETHING', value: 'G0 X1\n', line: 1 },
+    ]);
+    expect(bare.map((o) => [o.id, o.opstate.state])).toEqual([
+      [43, 'run'],
+      [42, 'unknown'],
+    ]);
+    expect(bare[1]!.opstate.raw).toBe('SOMETHING');
+    expect(operationListResponse.parse({ value: [{ id: '7', opstate: 'pend' }] })[0]!.id).toBe('7');
+    expect(operationListResponse.safeParse({ value: [{ id: 1 }] }).success).toBe(false);
   });
 });

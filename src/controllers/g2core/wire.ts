@@ -184,6 +184,15 @@ export const operationResponse = z.preprocess((b) => {
   return b;
 }, operation);
 
+/**
+ * GET /operation (settled by the console, see client.ts): the operations the server knows,
+ * unfinished first. Bare array or `{"value":[…]}`.
+ */
+export const operationListResponse = z.preprocess((b) => {
+  if (isRecord(b) && Array.isArray(b.value)) return b.value;
+  return b;
+}, z.array(operation));
+
 // ---------------------------------------------------------------------------------------------
 // Jobs (settled by the console; see client.ts). GET /job/{id} →
 // {"id","name","state","lines","done","started","finished","operation","position","error"?}.

@@ -1,5 +1,5 @@
 import { afterEach, beforeEach, describe, expect, it, vi } from 'vitest';
-import { G2coreSimulator } from './simulator';
+import { DEMO_JOB_NAME, DEMO_PAUSE_MS, G2coreSimulator, demoPocket } from './simulator';
 
 let sim: G2coreSimulator;
 
@@ -171,10 +171,21 @@ describe('operations', () => {
     await call('POST', '/operation', { optype: 'run', value: ['G28.2 X0', 'G4 P1'] });
     await vi.advanceTimersByTimeAsync(200);
     expect(((await call('GET', '/status_report')).body as Record<string, number>).stat).toBe(9);
-    await vi.advanceTimersByTimeAsync(3200);
+    // Search: 153 mm toward the switch (3 mm beyond X min) at sv 3000 mm/min.
+    await vi.advanceTimersByTimeAsync(2600);
+    const search = (await call('GET', '/status_report')).body as Record<string, number>;
+    expect([search.stat, search.vel]).toEqual([9, 3000]);
+    expect(search.mpox).toBeLessThan(-130);
+    // Latch: off the switch at lv 100 mm/min.
+    await vi.advanceTimersByTimeAsync(600);
+    const latch = (await call('GET', '/status_report')).body as Record<string, number>;
+    expect([latch.stat, latch.vel]).toEqual([9, 100]);
+    // Zero backoff, then the axis stands at its home position (tn = 0) and the dwell runs.
+    await vi.advanceTimersByTimeAsync(600);
     const s = (await call('GET', '/status_report')).body as Record<string, number>;
     expect(s.stat).toBe(5);
     expect(s.mpox).toBe(0);
+    expect((await call('GET', `/status_report?filter=${q({ homx: null })}`)).body).toEqual({ homx: 1 });
     await vi.advanceTimersByTimeAsync(1000);
     expect(((await call('GET', '/status_report')).body as Record<string, number>).stat).toBe(3);
   });
@@ -199,5 +210,164 @@ describe('jobs', () => {
     expect((await call('GET', `/job/${a}`)).body).toMatchObject({ state: 'killed' });
     list = (await call('GET', '/job')).body as { id: number; position: number }[];
     expect(list[0]).toMatchObject({ id: b, position: 0 });
+  });
+});
+
+describe('demo control', () => {
+  type JobRow = { id: number; name: string; state: string; lines: number; done: number };
+  const jobs = async () => (await call('GET', '/job')).body as JobRow[];
+  const sr = async () => (await call('GET', '/status_report')).body as Record<string, number>;
+
+  beforeEach(() => {
+    sim.dispose();
+    // One-second steps keep minutes of simulated cutting cheap; moves interpolate over the budget.
+    sim = new G2coreSimulator({ id: 'g', name: 'G', tickMs: 1000 });
+  });
+
+  it('homes, then cuts a pocket job over several minutes that the console can hold and resume', async () => {
+    const demo = sim.controls().find((c) => c.id === 'demo');
+    expect(demo?.label).toBe('Start a demo job');
+    demo!.run();
+    demo!.run(); // a second press while it runs starts nothing new
+    let list = await jobs();
+    expect(list).toHaveLength(1);
+    expect(list[0]).toMatchObject({ name: DEMO_JOB_NAME, state: 'running', lines: demoPocket().length });
+    await vi.advanceTimersByTimeAsync(1000);
+    expect((await sr()).stat).toBe(9); // homing first
+    await vi.advanceTimersByTimeAsync(20_000);
+    const s1 = await sr();
+    expect(s1.stat).toBe(5);
+    const done1 = (await jobs())[0]!.done;
+    await vi.advanceTimersByTimeAsync(30_000);
+    const s2 = await sr();
+    expect([s2.posx, s2.posy]).not.toEqual([s1.posx, s1.posy]);
+    expect(s2.posz).toBeLessThan(-20); // cutting below the stock top
+    expect((await jobs())[0]!.done).toBeGreaterThan(done1);
+    // The job is an ordinary job: the console holds and resumes it.
+    const id = (await jobs())[0]!.id;
+    expect((await call('PUT', `/job/${id}`, { state: 'pause' })).status).toBe(200);
+    expect((await sr()).stat).toBe(6);
+    await vi.advanceTimersByTimeAsync(5000);
+    expect((await jobs())[0]!.state).toBe('paused');
+    expect((await call('PUT', `/job/${id}`, { state: 'run' })).status).toBe(200);
+    expect((await sr()).stat).toBe(5);
+    list = await jobs();
+    expect(list[0]!.done).toBeLessThan(list[0]!.lines);
+  });
+
+  it('runs for several minutes, then starts again after a pause; a kill ends the loop', async () => {
+    sim
+      .controls()
+      .find((c) => c.id === 'demo')!
+      .run();
+    let seconds = 0;
+    while ((await jobs())[0]!.state === 'running' && seconds < 900) {
+      await vi.advanceTimersByTimeAsync(5000);
+      seconds += 5;
+    }
+    expect(seconds).toBeGreaterThanOrEqual(180);
+    expect(seconds).toBeLessThan(600);
+    let list = await jobs();
+    expect(list.map((j) => j.state)).toEqual(['done']);
+    expect(list[0]!.done).toBe(list[0]!.lines);
+    expect((await sr()).stat).toBe(4); // M30: program end
+    await vi.advanceTimersByTimeAsync(DEMO_PAUSE_MS + 1000);
+    list = await jobs();
+    expect(list.map((j) => [j.name, j.state])).toEqual([
+      [DEMO_JOB_NAME, 'running'],
+      [DEMO_JOB_NAME, 'done'],
+    ]);
+    expect(sim.demoRunning).toBe(true);
+    // The operator kills it: the machine stays stopped.
+    expect((await call('PUT', `/job/${list[0]!.id}`, { state: 'kill' })).status).toBe(200);
+    await vi.advanceTimersByTimeAsync(DEMO_PAUSE_MS * 3);
+    expect((await jobs()).map((j) => j.state)).toEqual(['killed', 'done']);
+    expect(sim.demoRunning).toBe(false);
+  });
+
+  it('waits for an alarm to be cleared and for other work to finish before it starts', async () => {
+    sim
+      .controls()
+      .find((c) => c.id === 'limit')!
+      .run();
+    sim
+      .controls()
+      .find((c) => c.id === 'demo')!
+      .run();
+    await vi.advanceTimersByTimeAsync(2000);
+    expect(await jobs()).toEqual([]);
+    await call('GET', '/machine/clear');
+    await vi.advanceTimersByTimeAsync(1000);
+    expect((await jobs())[0]).toMatchObject({ name: DEMO_JOB_NAME, state: 'running' });
+  });
+});
+
+describe('arcs', () => {
+  const pos = async () => {
+    const r = (await call('GET', `/status_report?filter=${q({ posx: null, posy: null, stat: null })}`))
+      .body as Record<string, number>;
+    return r;
+  };
+
+  it('G2 follows the circle (I/J centre), G3 with R goes the other way; bad arcs get the arc codes', async () => {
+    expect(
+      (await call('POST', '/operation', { optype: 'run', value: ['G2 X20 Y0 I10 J0 F600'] })).status,
+    ).toBe(201);
+    await vi.advanceTimersByTimeAsync(1600); // half of the 31.4 mm half circle at 600 mm/min
+    const mid = await pos();
+    expect(mid.posx).toBeCloseTo(10, 0);
+    expect(mid.posy).toBeGreaterThan(9); // clockwise from the left: over the top
+    await vi.advanceTimersByTimeAsync(2000);
+    expect(await pos()).toEqual({ posx: 20, posy: 0, stat: 3 });
+    await call('POST', '/operation', { optype: 'run', value: ['G3 X0 Y0 R10 F600'] });
+    await vi.advanceTimersByTimeAsync(1600);
+    expect((await pos()).posy).toBeGreaterThan(9); // counter-clockwise back from the right: over the top
+    await vi.advanceTimersByTimeAsync(2000);
+    expect(await pos()).toEqual({ posx: 0, posy: 0, stat: 3 });
+    const noCentre = await call('POST', '/operation', { optype: 'run', value: ['G2 X20 Y0 F600'] });
+    expect([noCentre.status, (noCentre.body as { status: { code: number } }).status.code]).toEqual([
+      400, 157,
+    ]);
+    const radius = await call('POST', '/operation', { optype: 'run', value: ['G2 X20 Y0 I3 J0 F600'] });
+    expect((radius.body as { status: { code: number } }).status.code).toBe(158);
+  });
+});
+
+describe('operation list', () => {
+  it('GET /operation lists the unfinished operations in order, then finished ones', async () => {
+    await call('POST', '/operation', { optype: 'run', value: ['G0 X1'] });
+    await vi.advanceTimersByTimeAsync(1000);
+    const a = await call('POST', '/operation', { optype: 'run', value: ['G1 X100 F100'] });
+    const b = await call('POST', '/operation', { optype: 'run', value: ['G1 X0 F100'] });
+    const list = (await call('GET', '/operation')).body as { id: number; opstate: string }[];
+    expect(list.map((o) => [o.id, o.opstate])).toEqual([
+      [a.body, 'run'],
+      [b.body, 'pend'],
+      [42, 'done'],
+    ]);
+  });
+});
+
+describe('input limits', () => {
+  it('a line longer than the line buffer is 413 with status 107', async () => {
+    const r = await call('POST', '/operation', { optype: 'run', value: [`G0 X1 (${'x'.repeat(300)})`] });
+    expect([r.status, (r.body as { status: { code: number } }).status.code]).toEqual([413, 107]);
+  });
+});
+
+describe('sendfile', () => {
+  it('runs a queued job like PUT /job/{id} run: refused behind other motion, then running with its operation', async () => {
+    const job = (await call('POST', '/job', { name: 'a.nc', gcode: 'G1 X10 F600' })).body as number;
+    await call('POST', '/operation', { optype: 'run', value: ['G1 X50 F600'] });
+    const busy = await call('POST', '/operation', { optype: 'sendfile', value: job });
+    expect([busy.status, (busy.body as { status: { code: number } }).status.code]).toEqual([405, 106]);
+    await vi.advanceTimersByTimeAsync(6000);
+    const ok = await call('POST', '/operation', { optype: 'sendfile', value: job });
+    expect(ok.status).toBe(201);
+    expect((await call('GET', `/job/${job}`)).body).toMatchObject({
+      state: 'running',
+      operation: ok.body,
+      position: null,
+    });
   });
 });

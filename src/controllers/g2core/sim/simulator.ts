@@ -15,6 +15,7 @@ import {
   round,
   zeroVec,
   type Action,
+  type Axis,
   type AxisVec,
   type GError,
   type InterpEnv,
@@ -153,8 +154,28 @@ interface SimJob {
   operation: number | null;
 }
 
+/**
+ * One leg of a homing cycle, per axis in the firmware's order (Z, X, Y, A, B, C): `search`
+ * toward the switch at the search velocity (sv), `latch` off the switch at the latch velocity
+ * (lv, until it opens: at most lb, 1 mm here), `backoff` the zero backoff (zb) at sv. After the
+ * last leg the axis is at its home position (tn, or tm with hd=1) and homed.
+ */
+interface HomeLeg {
+  t: 'homeleg';
+  axis: Axis;
+  phase: 'search' | 'latch' | 'backoff';
+  /** Believed position of the axis at the end of the leg. */
+  to: number;
+  /** mm/min. */
+  rate: number;
+  /** Home position, set when the last leg ends. */
+  home: number | null;
+}
+
+type SimAction = Action | HomeLeg;
+
 interface Running {
-  action: Action;
+  action: SimAction;
   elapsed: number;
   from: AxisVec;
   /** Homing: the planned end position. */
@@ -164,6 +185,31 @@ interface Running {
 }
 
 const MAX_JOB_BYTES = 4 * 1024 * 1024;
+/** Longest line the simulated firmware accepts (a simulator choice: g2core reads lines into a ~255-byte buffer). */
+const MAX_LINE = 254;
+
+export const DEMO_JOB_NAME = 'demo-pocket.nc';
+/** Between two demo runs: the simulated operator changes the stock. */
+export const DEMO_PAUSE_MS = 15_000;
+
+/**
+ * The demo job: home (Z first, as the design's own example), then a 100 x 80 mm pocket cut in
+ * three 1.5 mm steps with 4 mm zig-zag rows at 1500 mm/min: about 4.5 minutes and 150 lines, all
+ * inside the 100.12 travel (X/Y 0..420, Z -95..0) with soft limits on.
+ */
+export function demoPocket(): string[] {
+  const lines = ['G21 G90 G17 G94 G54', 'G28.2 Z0', 'G28.2 X0 Y0', 'M3 S12000', 'G4 P2', 'G0 Z-10'];
+  for (const depth of [-21.5, -23, -24.5]) {
+    lines.push('G0 X100 Y100', `G1 Z${depth} F300`, 'F1500');
+    for (let i = 0, y = 100; y <= 180; i++, y += 4) {
+      if (y > 100) lines.push(`G1 Y${y}`);
+      lines.push(`G1 X${i % 2 === 0 ? 200 : 100}`);
+    }
+    lines.push('G0 Z-10');
+  }
+  lines.push('G0 Z-5', 'G0 X10 Y10', 'M5', 'M30');
+  return lines;
+}
 
 function isRecord(v: unknown): v is Record<string, unknown> {
   return typeof v === 'object' && v !== null && !Array.isArray(v);
@@ -192,7 +238,8 @@ export class G2coreSimulator implements Simulator {
   private queue: number[] = [];
   private jobSeq = 0;
   private running: Running | null = null;
-  private pending: Action[] = [];
+  private pending: SimAction[] = [];
+  private ticking = false;
 
   constructor(private readonly opts: SimOptions) {
     this.now = opts.now ?? Date.now;
@@ -277,6 +324,14 @@ export class G2coreSimulator implements Simulator {
     const t = this.now();
     let budget = Math.max(0, t - this.last);
     this.last = t;
+    if (this.demo && !this.ticking) {
+      this.ticking = true;
+      try {
+        this.demoStep();
+      } finally {
+        this.ticking = false;
+      }
+    }
     if (this.alarmed() !== null || this.stat === 6 || this.stat === 11) {
       this.vel = 0;
       return;
@@ -304,7 +359,7 @@ export class G2coreSimulator implements Simulator {
       budget -= use;
       r.elapsed += use;
       const f = r.ms > 0 ? Math.min(1, r.elapsed / r.ms) : 1;
-      if (r.action.t === 'move' || r.action.t === 'home') {
+      if (r.action.t === 'move' || r.action.t === 'homeleg') {
         for (const a of AXES) this.mpos[a] = r.from[a] + (r.to[a] - r.from[a]) * f;
         this.vel = r.rate;
       } else this.vel = 0;
@@ -345,7 +400,7 @@ export class G2coreSimulator implements Simulator {
     this.pending.push(...r.actions, { t: 'dwell', ms: -1 } /* marks the end of the line */);
   }
 
-  private begin(action: Action): void {
+  private begin(action: SimAction): void {
     const op = this.currentOp();
     if (action.t === 'dwell' && action.ms < 0) {
       if (op) op.done++;
@@ -367,16 +422,12 @@ export class G2coreSimulator implements Simulator {
       this.running = { action, elapsed: 0, from, to: from, ms: action.ms, rate: 0 };
     } else if (action.t === 'home') {
       this.stat = 9;
-      // Search toward the switch at the search velocity, then latch: one move in the simulation.
-      const to = { ...from };
-      let ms = 0;
-      for (const a of action.axes) {
-        const home = this.num(a, 'hd') === 1 ? this.num(a, 'tm') : this.num(a, 'tn');
-        const physical = from[a] + this.drift[a];
-        to[a] = from[a] + (home - physical);
-        ms = Math.max(ms, (Math.abs(home - physical) / Math.max(1, this.num(a, 'sv'))) * 60_000 + 300);
-      }
-      this.running = { action, elapsed: 0, from, to, ms, rate: this.num(action.axes[0]!, 'sv') };
+      this.pending.unshift(...this.homeLegs(action.axes));
+    } else if (action.t === 'homeleg') {
+      this.stat = 9;
+      const to = { ...from, [action.axis]: action.to };
+      const ms = (Math.abs(action.to - from[action.axis]) / Math.max(1, action.rate)) * 60_000;
+      this.running = { action, elapsed: 0, from, to, ms, rate: action.rate };
     } else if (action.t === 'end') {
       this.ended = true;
     } else if (action.t === 'json') {
@@ -397,15 +448,41 @@ export class G2coreSimulator implements Simulator {
   private finish(r: Running): void {
     this.running = null;
     this.vel = 0;
-    if (r.action.t === 'home') {
-      for (const a of r.action.axes) {
-        const home = this.num(a, 'hd') === 1 ? this.num(a, 'tm') : this.num(a, 'tn');
-        this.mpos[a] = home;
-        this.model.pos[a] = home;
-        this.drift[a] = 0;
-      }
-      this.stat = 5;
+    if (r.action.t === 'homeleg' && r.action.home !== null) {
+      const a = r.action.axis;
+      this.mpos[a] = r.action.home;
+      this.model.pos[a] = r.action.home;
+      this.drift[a] = 0;
+      if (!this.pending.some((p) => p.t === 'homeleg')) this.stat = 5;
     }
+  }
+
+  /**
+   * The legs of a homing cycle. The switch sits zb + 1 mm beyond the home position, so that after
+   * search, latch and zero backoff the axis stands exactly at home. Until then the simulator
+   * knows where the axis physically is (position + drift); the controller does not.
+   */
+  private homeLegs(axes: Axis[]): HomeLeg[] {
+    const legs: HomeLeg[] = [];
+    const pos = { ...this.mpos };
+    for (const a of axes) {
+      const toMax = this.num(a, 'hd') === 1;
+      const dir = toMax ? 1 : -1;
+      const home = toMax ? this.num(a, 'tm') : this.num(a, 'tn');
+      const latch = Math.min(1, Math.max(0.1, this.num(a, 'lb') || 1));
+      const zb = Math.max(0, this.num(a, 'zb'));
+      const sv = Math.max(1, this.num(a, 'sv'));
+      const lv = Math.max(1, this.num(a, 'lv'));
+      const switchAt = home + dir * (zb + latch); // physical
+      const atSwitch = pos[a] + (switchAt - (pos[a] + this.drift[a]));
+      legs.push(
+        { t: 'homeleg', axis: a, phase: 'search', to: atSwitch, rate: sv, home: null },
+        { t: 'homeleg', axis: a, phase: 'latch', to: atSwitch - dir * latch, rate: lv, home: null },
+        { t: 'homeleg', axis: a, phase: 'backoff', to: atSwitch - dir * (latch + zb), rate: sv, home },
+      );
+      pos[a] = home;
+    }
+    return legs;
   }
 
   private finishOp(op: Op, err: GError | null): void {
@@ -656,6 +733,7 @@ export class G2coreSimulator implements Simulator {
       if (key !== undefined && method === 'GET') return this.getKey(key);
       if (key !== undefined && method === 'PUT') return this.putKey(key, await this.body(req));
       if (path === '/operation' && method === 'POST') return this.postOperation(await this.body(req));
+      if (path === '/operation' && method === 'GET') return jsonResponse(this.opList());
       const opId = /^\/operation\/([^/]+)$/.exec(path)?.[1];
       if (opId !== undefined && method === 'GET') return jsonResponse(this.opView(this.findOp(opId)));
       if (opId !== undefined && method === 'PUT')
@@ -782,26 +860,26 @@ export class G2coreSimulator implements Simulator {
     const rejected = this.alarmed();
     if (rejected !== null) throw new G2Fail(rejected, 'clear the alarm first');
     let lines: string[];
-    let jobId: number | null = null;
     if (optype === 'run') {
       if (typeof value === 'string') lines = value.split(/\r?\n/);
       else if (Array.isArray(value) && value.every((l) => typeof l === 'string')) lines = value as string[];
       else throw new G2Fail(101, 'value must be a string or an array of lines');
       lines = lines.map((l) => l.trim()).filter((l) => l !== '');
       if (lines.length === 0) throw new G2Fail(101, 'no lines to run');
+      // A line longer than the firmware's line buffer is status 107 (HTTP 413 in the design's table).
+      const long = lines.findIndex((l) => l.length > MAX_LINE);
+      if (long >= 0)
+        throw new G2Fail(107, `line ${long + 1} has ${lines[long]!.length} characters > ${MAX_LINE}`);
     } else if (optype === 'sendfile') {
+      // The same as PUT /job/{id} {"state":"run"}: one job at a time, never behind other motion.
       const job = this.findJob(String(value));
       if (job.state !== 'queued') throw new G2Fail(106, `job ${job.id} is ${job.state}`);
-      lines = job.lines;
-      jobId = job.id;
+      if (this.currentOp()) throw new G2Fail(106, 'the machine is busy with another operation');
+      this.startJob(job);
+      return jsonResponse(job.operation, 201);
     } else throw new G2Fail(101, `unknown optype ${JSON.stringify(optype)}`);
-    if (jobId === null) this.dryRun(lines);
-    const op = this.addOp(optype, value as string[] | string, lines, jobId);
-    const job = jobId !== null ? this.jobs.get(jobId) : undefined;
-    if (job) {
-      this.queue = this.queue.filter((id) => id !== job.id);
-      job.operation = op.id;
-    }
+    this.dryRun(lines);
+    const op = this.addOp('run', value as string[] | string, lines, null);
     return jsonResponse(op.id, 201);
   }
 
@@ -872,6 +950,17 @@ export class G2coreSimulator implements Simulator {
     return v;
   }
 
+  /** GET /operation: unfinished operations in the order they run, then the 20 latest finished. */
+  private opList(): Record<string, unknown>[] {
+    const all = [...this.ops.values()];
+    const active = all.filter((o) => o.state === 'run' || o.state === 'pend');
+    const ended = all
+      .filter((o) => !active.includes(o))
+      .reverse()
+      .slice(0, 20);
+    return [...active, ...ended].map((o) => this.opView(o));
+  }
+
   private putOperation(op: Op, body: unknown): Response {
     const want = isRecord(body) ? body.opstate : undefined;
     const active = op.state === 'run' || op.state === 'pend';
@@ -886,7 +975,7 @@ export class G2coreSimulator implements Simulator {
       this.setJobState(op, 'paused');
     } else if (want === 'run') {
       if (op.state !== 'run' || this.stat !== 6) throw new G2Fail(106, `operation ${op.id} is not held`);
-      this.stat = this.running?.action.t === 'home' ? 9 : 5;
+      this.stat = this.running?.action.t === 'homeleg' ? 9 : 5;
       this.hold = 0;
       this.last = this.now();
       this.setJobState(op, 'running');
@@ -925,6 +1014,11 @@ export class G2coreSimulator implements Simulator {
       .map((l) => l.trim())
       .filter((l) => l !== '' && !/^\(.*\)$/.test(l) && !l.startsWith(';'));
     if (lines.length === 0) throw new G2Fail(101, 'the job has no G-code lines');
+    return jsonResponse(this.addJob(name, lines).id, 201);
+  }
+
+  /** Puts a job at the end of the queue (it waits there for a start). */
+  private addJob(name: string, lines: string[]): SimJob {
     const job: SimJob = {
       id: ++this.jobSeq,
       name: name || `job-${this.jobSeq}.nc`,
@@ -936,7 +1030,21 @@ export class G2coreSimulator implements Simulator {
     };
     this.jobs.set(job.id, job);
     this.queue.push(job.id);
-    return jsonResponse(job.id, 201);
+    // Keep the finished history bounded (the demo loop queues a job every few minutes).
+    const done = [...this.jobs.values()].filter((j) => !['queued', 'running', 'paused'].includes(j.state));
+    for (const j of done.sort((a, b) => (a.finished ?? 0) - (b.finished ?? 0)).slice(0, -50))
+      this.jobs.delete(j.id);
+    return job;
+  }
+
+  /** Starts a queued job as a `sendfile` operation. */
+  private startJob(job: SimJob): void {
+    this.queue = this.queue.filter((id) => id !== job.id);
+    // State first: addOp runs the first lines at once, and a job may end (in error) right there.
+    job.state = 'running';
+    job.started = this.now();
+    const created = this.addOp('sendfile', String(job.id), job.lines, job.id);
+    job.operation = created.id;
   }
 
   private findJob(id: string): SimJob {
@@ -991,11 +1099,7 @@ export class G2coreSimulator implements Simulator {
           if (rejected !== null) throw new G2Fail(rejected, 'clear the alarm first');
           // One job at a time; the next queued job never starts by itself (the operator checks the stock).
           if (this.currentOp()) throw new G2Fail(106, 'the machine is busy with another operation');
-          this.queue = this.queue.filter((id) => id !== job.id);
-          const created = this.addOp('sendfile', String(job.id), job.lines, job.id);
-          job.operation = created.id;
-          job.state = 'running';
-          job.started = this.now();
+          this.startJob(job);
         } else if (op && job.state === 'paused') this.putOperation(op, { opstate: 'run' });
         else throw new G2Fail(106, `job ${job.id} is ${job.state}`);
         break;
@@ -1027,8 +1131,54 @@ export class G2coreSimulator implements Simulator {
 
   // ------------------------------------------------------------------------------ controls
 
+  /**
+   * The demo loop ("Start a demo job", run automatically for the built-in demo fleet): the
+   * simulated operator homes, queues DEMO_JOB_NAME and starts it, and after each successful run
+   * waits DEMO_PAUSE_MS (new stock) and runs it again. It works only on the simulator's own state
+   * (the same job queue and operations a REST client sees), never through requests, so the
+   * console shows it as a job like any other and can hold, resume and kill it. A job that ends
+   * killed or in error (an operator's kill, an alarm) ends the loop: a stopped machine stays
+   * stopped until someone starts the demo again.
+   */
+  private demo: { jobId: number | null; restartAt: number | null } | null = null;
+
+  startDemo(): void {
+    const id = this.demo?.jobId ?? null;
+    const job = id !== null ? this.jobs.get(id) : undefined;
+    if (job && ['queued', 'running', 'paused'].includes(job.state)) return;
+    this.demo = { jobId: null, restartAt: this.now() };
+    this.demoStep();
+  }
+
+  /** True while the demo loop is on (a demo job runs or the next one is due). */
+  get demoRunning(): boolean {
+    return this.demo !== null;
+  }
+
+  private demoStep(): void {
+    const d = this.demo;
+    if (!d) return;
+    const job = d.jobId !== null ? this.jobs.get(d.jobId) : undefined;
+    if (job && ['queued', 'running', 'paused'].includes(job.state)) return;
+    if (job && job.state !== 'done') {
+      this.demo = null;
+      return;
+    }
+    if (d.restartAt === null) {
+      d.restartAt = this.now() + DEMO_PAUSE_MS;
+      return;
+    }
+    // Wait for a machine that could start: idle, no alarm, nothing else running.
+    if (this.now() < d.restartAt || this.currentOp() || ![1, 3, 4].includes(this.stat)) return;
+    const next = this.addJob(DEMO_JOB_NAME, demoPocket());
+    d.jobId = next.id;
+    d.restartAt = null;
+    this.startJob(next);
+  }
+
   controls(): SimControl[] {
     return [
+      { id: 'demo', label: 'Start a demo job', run: () => this.startDemo() },
       {
         id: 'limit',
         label: 'Trip a limit switch (ALARM)',

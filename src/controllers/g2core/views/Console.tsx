@@ -2,7 +2,7 @@ import { useState } from 'react';
 import { CommandButton, useStoreSelect } from '../../../fleet/react';
 import { Button, Panel, formatTime } from '../../../ui';
 import type { ConsoleEntry, G2coreSession } from '../session';
-import { Dro, StatBadge } from './common';
+import { Dro, StatBadge, WhyNot } from './common';
 
 const STATE_WORDS: Record<ConsoleEntry['state'], string> = {
   sent: 'sent',
@@ -72,6 +72,7 @@ export function ConsoleTab({ session }: { session: G2coreSession }) {
               </CommandButton>
             )}
           </div>
+          <WhyNot session={session} command={session.mdi} />
         </form>
       </Panel>
       <Panel title="Position">

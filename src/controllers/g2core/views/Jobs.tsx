@@ -1,7 +1,7 @@
 import { useState } from 'react';
 import { CommandButton, useStoreSelect } from '../../../fleet/react';
 import { Badge, Button, DataTable, Notice, Panel, ProgressBar, formatDateTime, type Tone } from '../../../ui';
-import type { G2coreSession } from '../session';
+import { describeStatus, type G2coreSession } from '../session';
 import type { Job, JobState } from '../wire';
 import { Controls, JobProgress, StatBadge } from './common';
 
@@ -51,6 +51,15 @@ export function JobsTab({ session }: { session: G2coreSession }) {
           >
             {j.state.state === 'unknown' ? `unknown (raw ${j.state.raw})` : j.state.state}
           </Badge>
+          {j.error && j.error.code !== 207 && (
+            <span
+              className="ui-muted"
+              style={{ display: 'block', color: 'var(--bad)' }}
+              data-testid={`g2-job-error-${j.id}`}
+            >
+              {describeStatus(j.error)}
+            </span>
+          )}
         </span>
       ),
     },

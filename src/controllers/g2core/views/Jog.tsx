@@ -2,7 +2,7 @@ import { useState } from 'react';
 import { CommandButton, useStoreSelect } from '../../../fleet/react';
 import { Button, Panel } from '../../../ui';
 import type { AxisLetter, G2coreSession } from '../session';
-import { Alarms, Dro, StatBadge } from './common';
+import { Alarms, Dro, StatBadge, WhyNot } from './common';
 
 const STEPS_MM = [0.1, 1, 10, 50];
 const STEPS_IN = [0.001, 0.01, 0.1, 1];
@@ -40,6 +40,9 @@ export function JogTab({ session }: { session: G2coreSession }) {
             <span className="g2-bigstop">STOP</span>
           </CommandButton>
         </div>
+        <p className="ui-muted" style={{ textAlign: 'center' }}>
+          Stops whatever moves: the jog or homing, else the running job (a stopped job cannot be resumed).
+        </p>
       </Panel>
       <Panel title="Jog" testId="g2-jog">
         <div className="ui-muted" style={{ marginBottom: 6 }}>
@@ -67,6 +70,7 @@ export function JogTab({ session }: { session: G2coreSession }) {
             </Button>
           ))}
         </div>
+        <WhyNot session={session} command={session.jog} />
         <div className="g2-jog" style={{ marginTop: 12 }}>
           {axes.map((a: AxisLetter) => (
             <div className="row" key={a}>
@@ -95,6 +99,7 @@ export function JogTab({ session }: { session: G2coreSession }) {
       </Panel>
       <Panel title="Home (G28.2)">
         <p className="ui-muted">Homing moves each axis to its switch; the machine must be idle.</p>
+        <WhyNot session={session} command={session.home} />
         <div className="g2-choices">
           <CommandButton
             runner={runner}

@@ -1,3 +1,4 @@
+import type { CommandDecl } from '../../../fleet/commands';
 import { CommandButton, useSnapshot, useStoreSelect } from '../../../fleet/react';
 import { Notice, ProgressBar, formatDuration, formatNumber, type Tone } from '../../../ui';
 import { decodeEnum, statLabel } from '../codes';
@@ -176,6 +177,31 @@ export function JobProgress({ session }: { session: G2coreSession }) {
         elapsed {formatDuration(job.elapsed)} · remaining{' '}
         {job.remaining === null ? '—' : `≈ ${formatDuration(job.remaining)}`}
       </div>
+    </div>
+  );
+}
+
+/**
+ * Why a command cannot run right now, in words on screen: the button's own title only shows on
+ * hover, which a touch tablet does not have.
+ */
+export function WhyNot<A>({
+  session,
+  command,
+  testId,
+}: {
+  session: G2coreSession;
+  command: CommandDecl<A>;
+  testId?: string;
+}) {
+  // Re-render when anything a predicate reads changes: link, state, jobs, tracked operations.
+  useSnapshot(session.ctx, (s) => `${s.link}|${s.activity}|${s.activityLabel}`);
+  useStoreSelect(session.detail, (d) => ({ jobs: d.jobs, ops: d.ops, stat: d.sr.stat }));
+  const reason = session.ctx.commands.blockedReason(command);
+  if (!reason) return null;
+  return (
+    <div className="ui-muted" style={{ margin: '8px 0' }} data-testid={testId ?? `g2-whynot-${command.id}`}>
+      {reason}
     </div>
   );
 }

@@ -10,6 +10,7 @@ import { G2coreSimulator } from '../sim/simulator';
 import { OverviewTab } from './Overview';
 import { SettingsTab } from './Settings';
 import { ConsoleTab } from './Console';
+import { JobsTab } from './Jobs';
 
 let sim: G2coreSimulator;
 let session: G2coreSession;
@@ -80,5 +81,32 @@ describe('g2core views', () => {
     await waitFor(() =>
       expect(screen.getByTestId('g2-console-log').textContent).toContain('Gcode command unsupported'),
     );
+  });
+  it('console: says on screen why MDI is not available while a job runs', async () => {
+    render(<ConsoleTab session={session} />);
+    await waitFor(() => expect(screen.getByTestId('g2-stat').textContent).toBe('Ready'));
+    expect(screen.queryByTestId('g2-whynot-g2core.mdi')).toBeNull();
+    act(() =>
+      sim
+        .controls()
+        .find((c) => c.id === 'demo')!
+        .run(),
+    );
+    await waitFor(() =>
+      expect(screen.getByTestId('g2-whynot-g2core.mdi').textContent).toMatch(
+        /Not while job "demo-pocket.nc" runs/,
+      ),
+    );
+  });
+  it('jobs: the status text of a failed job is on screen, not only in a tooltip', async () => {
+    render(<JobsTab session={session} />);
+    const send = (method: string, path: string, body: unknown) =>
+      sim.fetch(new Request(`http://sim${path}`, { method, body: JSON.stringify(body) }), path);
+    await send('POST', '/job', { name: 'bad.nc', gcode: 'G21\nG999\n' });
+    await send('PUT', '/job/1', { state: 'run' });
+    await waitFor(() =>
+      expect(screen.getByTestId('g2-job-error-1').textContent).toMatch(/Gcode command unsupported — .*G999/),
+    );
+    expect(screen.getByTestId('g2-job-state-1').textContent).toContain('error');
   });
 });
