@@ -91,7 +91,11 @@ export function CommandButton<A>(props: {
 
   if (!allowed && props.hideWhenNotAllowed) return null;
   const onClick = () => {
-    if (reason) return;
+    if (reason) {
+      // Tablets have no hover: a tap on an unavailable command says why, on screen.
+      setError(`Not available: ${reason}`);
+      return;
+    }
     if (confirmText) setConfirmStep(1);
     else void send();
   };
@@ -105,7 +109,8 @@ export function CommandButton<A>(props: {
         }
         small={props.small}
         busy={inFlight}
-        disabled={Boolean(reason) || inFlight}
+        disabled={inFlight}
+        aria-disabled={Boolean(reason) || undefined}
         onClick={onClick}
         title={title}
         aria-label={typeof props.children === 'string' ? undefined : command.label}

@@ -1,0 +1,63 @@
+// @vitest-environment happy-dom
+import { act, cleanup, fireEvent, render, screen } from '@testing-library/react';
+import { afterEach, describe, expect, it } from 'vitest';
+import type { CommandDecl } from './commands';
+import { createContext } from './fleet';
+import { alwaysVisible } from './link';
+import { CommandButton } from './react';
+
+afterEach(cleanup);
+
+function setup() {
+  const ctx = createContext(
+    { id: 'm1', name: 'M1', kind: 'duet', simulated: true },
+    { visibility: alwaysVisible, principal: () => ({ name: 'op', role: 'operator' }) },
+  );
+  const sent: string[] = [];
+  const start: CommandDecl = {
+    id: 'test.start',
+    label: 'Start job',
+    hazard: 'job',
+    role: 'operator',
+    available: (s) => (s.activity === 'idle' ? true : 'A job is already running'),
+    perform: async () => {
+      sent.push('start');
+      return 'started';
+    },
+  };
+  return { ctx, start, sent };
+}
+
+describe('CommandButton', () => {
+  it('says on screen why a command is unavailable when tapped, and sends nothing', () => {
+    const t = setup();
+    t.ctx.snapshot.setState({ link: 'online', activity: 'running' });
+    render(
+      <CommandButton runner={t.ctx.commands} snapshot={t.ctx.snapshot} command={t.start} args={undefined} />,
+    );
+    const button = screen.getByTestId('cmd-test.start');
+    expect(button.getAttribute('aria-disabled')).toBe('true');
+    fireEvent.click(button);
+    expect(screen.getByTestId('cmd-error-test.start').textContent).toBe(
+      'Not available: A job is already running',
+    );
+    expect(screen.queryByTestId('confirm-dialog')).toBeNull();
+    expect(t.sent).toEqual([]);
+  });
+
+  it('asks before a job command and sends it exactly once on confirmation', async () => {
+    const t = setup();
+    t.ctx.snapshot.setState({ link: 'online', activity: 'idle' });
+    render(
+      <CommandButton runner={t.ctx.commands} snapshot={t.ctx.snapshot} command={t.start} args={undefined} />,
+    );
+    fireEvent.click(screen.getByTestId('cmd-test.start'));
+    expect(screen.getByTestId('confirm-dialog').textContent).toContain('Start job?');
+    expect(t.sent).toEqual([]);
+    await act(async () => {
+      fireEvent.click(screen.getByTestId('confirm-yes'));
+    });
+    expect(t.sent).toEqual(['start']);
+    expect(screen.queryByTestId('confirm-dialog')).toBeNull();
+  });
+});
