@@ -77,4 +77,44 @@ describe('touchcut simulator', () => {
       ).status,
     ).toBe(401);
   });
+
+  it('control "demo" starts a job of several minutes that starts again, through its own state only', () => {
+    make();
+    const demo = sim.controls().find((c) => c.id === 'demo');
+    expect(demo?.label).toBe('Start a demo job');
+    sim.fault();
+    demo?.run();
+    expect(sim.status('metric', null).machineState).toBe('Running');
+    expect(sim.status('metric', null).msgStatus).toEqual([]);
+    const first = sim.programName;
+    // Progresses over several minutes: after one minute it is well under way but far from done.
+    t += 60_000;
+    sim.advance();
+    expect(sim.progress).toBeGreaterThan(5);
+    expect(sim.progress).toBeLessThan(40);
+    let completedAt = 0;
+    for (let s = 60; s < 900 && !completedAt; s++) {
+      t += 1000;
+      sim.advance();
+      if (sim.mode === 'complete') completedAt = s;
+    }
+    expect(completedAt).toBeGreaterThan(180);
+    expect(sim.live.starts).toBe(12);
+    // ... and starts again by itself.
+    for (let i = 0; i < 20 && sim.mode !== 'running'; i++) {
+      t += 1000;
+      sim.advance();
+    }
+    expect(sim.mode).toBe('running');
+    expect(sim.programName).not.toBe(first);
+    expect(sim.progress).toBeLessThan(10);
+    // Never a request: the simulator's own state only.
+    expect(sim.requests).toHaveLength(0);
+    // Running it again while a job runs leaves that job alone.
+    const p = sim.progress;
+    const name = sim.programName;
+    demo?.run();
+    expect(sim.programName).toBe(name);
+    expect(sim.progress).toBe(p);
+  });
 });

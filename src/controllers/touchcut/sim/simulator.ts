@@ -133,11 +133,11 @@ interface Segment {
   dur: number;
 }
 
-function buildProgram(seed: number): Segment[] {
+/** Nest size of a program: 3×2 parts (about 3 minutes), or 4×3 for the demo job (about 6). */
+function buildProgram(seed: number, nest: { cols: number; rows: number } = { cols: 3, rows: 2 }): Segment[] {
   const segs: Segment[] = [];
   let at: [number, number] = [0, 0];
-  const cols = 3;
-  const rows = 2;
+  const { cols, rows } = nest;
   const w = 280 + (seed % 3) * 40;
   const h = 180 + (seed % 2) * 60;
   for (let r = 0; r < rows; r++) {
@@ -196,6 +196,12 @@ export class TouchcutSimulator implements Simulator {
   breakJwt = false;
   autoOperator = true;
   /**
+   * Demo job (control `demo`): larger nests (12 parts, about six minutes at 100 % feed) that the
+   * simulated operator restarts a few seconds after each one completes. Only the simulator's own
+   * state changes: no request is sent, exactly like an operator pressing Start at the machine.
+   */
+  demoJob = false;
+  /**
    * Demo stand-in for the gateway. A simulated machine has no secrets in the machines file and,
    * in demo mode, msw answers in the page with no gateway in between; so the simulator plays the
    * gateway's part: a request with neither a JWT nor a key is treated as carrying the "Monitor"
@@ -247,7 +253,7 @@ export class TouchcutSimulator implements Simulator {
     this.advance();
     if (this.mode === 'running' || this.mode === 'paused' || this.mode === 'error') return;
     this.programCount++;
-    this.program = buildProgram(this.programCount);
+    this.program = buildProgram(this.programCount, this.demoJob ? { cols: 4, rows: 3 } : undefined);
     this.programName = `${PROGRAM_NAMES[this.programCount % PROGRAM_NAMES.length] ?? 'PART'}.nc`;
     this.segIndex = 0;
     this.segT = 0;
@@ -361,6 +367,24 @@ export class TouchcutSimulator implements Simulator {
     }
   }
 
+  /**
+   * Starts the demo job: a cutting program that runs for several minutes and, once complete, starts
+   * again (automatic cycle start on). A held or faulted program is stopped and replaced; a running
+   * one is left alone (the next cycles are demo-sized).
+   */
+  startDemo(): void {
+    this.advance();
+    this.demoJob = true;
+    this.autoOperator = true;
+    this.feedOverride = 100;
+    if (this.mode === 'error') {
+      this.errorMsg = null;
+      this.mode = 'paused';
+    }
+    if (this.mode === 'paused') this.stop();
+    if (this.mode !== 'running') this.startProgram();
+  }
+
   expireAllTokens(): void {
     for (const [, t] of this.tokens) t.exp = 0;
   }
@@ -371,6 +395,7 @@ export class TouchcutSimulator implements Simulator {
 
   controls(): SimControl[] {
     return [
+      { id: 'demo', label: 'Start a demo job', run: () => this.startDemo() },
       { id: 'start', label: 'Cycle start (operator at the machine)', run: () => this.startProgram() },
       { id: 'pause', label: 'Feed hold', run: () => this.pause() },
       { id: 'resume', label: 'Resume', run: () => this.resume() },

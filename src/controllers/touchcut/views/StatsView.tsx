@@ -253,7 +253,11 @@ function StatsBody({ session }: TabProps<TouchcutSession>) {
       <p className="ui-muted small" data-testid="stats-days">
         {days.length > 0
           ? `Data for ${days[0]} to ${days[days.length - 1]} (${days.length} days)`
-          : 'The machine returned no days for this range.'}{' '}
+          : 'The machine returned no days for this range.'}
+        {/* An empty day (a weekend, a holiday) is not an error: say so instead of a wall of zeros. */}
+        {days.length > 0 && derived.active === 0 && data.programs.length === 0
+          ? ' · no production was recorded in this range'
+          : ''}{' '}
         · units: {u ?? '—'}
         {clipped ? ' · the machine clipped the range to the days it keeps' : ''}
         {loading ? ' · refreshing…' : ''}
