@@ -8,7 +8,6 @@ describe('pruntAccess', () => {
   it('reads and the live socket are for viewers', () => {
     for (const p of [
       '/config/schema',
-      '/config/values',
       '/status/values',
       '/uploads/',
       '/uploads/a.gcode',
@@ -19,6 +18,8 @@ describe('pruntAccess', () => {
       expect(req('GET', p)).toMatchObject({ role: 'viewer', command: false });
     }
     expect(req('GET', '/websocket/everything', true).role).toBe('viewer');
+    // The flat API rewrites its config file on every read: viewers may read, the gateway audits it.
+    expect(req('GET', '/config/values')).toMatchObject({ role: 'viewer', command: true });
   });
   it('job controls and uploads are for operators, and audited', () => {
     for (const p of ['/pause/pause', '/pause/resume', '/cancel', '/run-file'])

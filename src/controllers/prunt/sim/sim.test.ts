@@ -139,3 +139,42 @@ describe('PruntSimulator (module API)', () => {
     expect(again[1]).toContain('"Startup": "Waiting"');
   });
 });
+
+describe('PruntSimulator demo control', () => {
+  it('runs a job for several minutes through its own state, then starts it again', async () => {
+    sim = new PruntSimulator({ id: 'p', name: 'p', api: 'module' });
+    const demo = sim.controls().find((c) => c.id === 'demo');
+    expect(demo?.label).toBe('Start a demo job');
+    demo?.run(); // before the board data loaded: the tick loop starts it
+    await sim.ready;
+    vi.advanceTimersByTime(100);
+    const status = () => sim?.moduleStatus()['Internal Status Reporter']?.['Print status'];
+    expect(status()?.['File name']).toBe('uploads/benchy.gcode');
+    vi.advanceTimersByTime(60_000);
+    const line = Number(status()?.['Current line']);
+    expect(line).toBeGreaterThan(10);
+    expect(sim.temps['THERMISTOR_1']).toBeGreaterThan(100);
+    // Still running after two minutes: it lasts several minutes, not seconds.
+    vi.advanceTimersByTime(60_000);
+    expect(status()?.['File name']).toBe('uploads/benchy.gcode');
+    expect(Number(status()?.['Current line'])).toBeGreaterThan(line);
+    // Done after about four minutes, idle for a while, then again.
+    vi.advanceTimersByTime(125_000);
+    expect(status()?.['File name']).toBe('');
+    vi.advanceTimersByTime(20_000);
+    expect(status()?.['File name']).toBe('uploads/benchy.gcode');
+    expect(Number(status()?.['Current line'])).toBeLessThan(line);
+    // The real server still refuses a second file while the demo runs.
+    expect((await post(sim, '/run-file', 'calibration_cube.gcode')).status).toBe(500);
+    // Pause holds the line; an operator's cancel ends the loop.
+    sim.paused = true;
+    const held = status()?.['Current line'];
+    vi.advanceTimersByTime(5_000);
+    expect(status()?.['Current line']).toBe(held);
+    sim.paused = false;
+    expect((await post(sim, '/cancel', '')).status).toBe(204);
+    expect(sim.demoRunning).toBe(false);
+    vi.advanceTimersByTime(60_000);
+    expect(status()?.['File name']).toBe('');
+  });
+});

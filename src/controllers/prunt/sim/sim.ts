@@ -54,7 +54,15 @@ interface Job {
   file: string;
   lines: string[];
   line: number;
+  /** Paced job (the demo): one line every `ticksPerLine` ticks instead of `linesPerTick` per tick. */
+  ticksPerLine?: number;
+  wait?: number;
 }
+
+/** The demo job: a file that runs for about four minutes, then, after a pause, runs again. */
+const DEMO_FILE = 'benchy.gcode';
+const DEMO_RUN_MS = 4 * 60_000;
+const DEMO_IDLE_MS = 15_000;
 
 const AXES = ['X_AXIS', 'Y_AXIS', 'Z_AXIS', 'E_AXIS'] as const;
 const THERMISTORS = ['THERMISTOR_1', 'THERMISTOR_2', 'THERMISTOR_3', 'THERMISTOR_4'] as const;
@@ -98,6 +106,8 @@ export class PruntSimulator implements Simulator {
   private updateTicks = 0;
   private commandSeq = 6;
   private moduleSchemaText: string | null = null;
+  /** The "demo" control is on: idle ticks since the demo job last ended. */
+  private demo: { idleTicks: number } | null = null;
 
   constructor(opts: PruntSimOptions) {
     this.api = opts.api ?? 'module';
@@ -169,6 +179,8 @@ export class PruntSimulator implements Simulator {
         return jsonResponse([...this.uploads.keys()]);
     }
     if (this.api === 'module' && route === 'POST /cancel') {
+      // sim: an operator's cancel also ends the demo loop (someone is at the machine now).
+      this.demo = null;
       if (this.job) {
         this.log(`Cancelled file ${this.job.file}.`);
         this.job = null;
@@ -398,7 +410,23 @@ export class PruntSimulator implements Simulator {
       this.startup = 'Done';
       this.log('Firmware update done.');
     }
-    if (this.job && !this.paused && this.startup === 'Done') {
+    if (this.demo && !this.job && this.startup === 'Done') {
+      if (++this.demo.idleTicks * this.tickMs >= DEMO_IDLE_MS) this.startDemoJob();
+    }
+    const paced = this.job?.ticksPerLine;
+    if (this.job && paced && !this.paused && this.startup === 'Done') {
+      this.job.wait = (this.job.wait ?? 0) - 1;
+      if (this.job.wait <= 0) {
+        this.job.wait = paced;
+        const line = this.job.lines[this.job.line];
+        this.job.line++;
+        if (line !== undefined) this.execute(line);
+        if (this.job.line >= this.job.lines.length) {
+          this.log(`File ${this.job.file} done.`);
+          this.job = null;
+        }
+      }
+    } else if (this.job && !this.paused && this.startup === 'Done') {
       for (let i = 0; i < this.linesPerTick && this.job; i++) {
         const line = this.job.lines[this.job.line];
         this.job.line++;
@@ -542,8 +570,39 @@ export class PruntSimulator implements Simulator {
     return [...this.clients].map((c) => c.divisor);
   }
 
+  /**
+   * Start the demo job through the simulator's own state (as an operator at the machine would:
+   * no HTTP command, nothing in the audit log). Skipped while a file runs or the server starts.
+   */
+  private startDemoJob(): void {
+    if (!this.demo) return;
+    this.demo.idleTicks = 0;
+    if (this.job || this.startup !== 'Done') return;
+    const text = this.uploads.get(DEMO_FILE) ?? sampleGcode(DEMO_FILE);
+    const lines = text.split('\n');
+    const ticksPerLine = Math.max(1, Math.round(DEMO_RUN_MS / this.tickMs / lines.length));
+    this.job = { file: DEMO_FILE, lines, line: 0, ticksPerLine, wait: 0 };
+    this.paused = false;
+    this.log(`Running file ${DEMO_FILE}.`);
+  }
+
+  /** The demo loop is on (tests). */
+  get demoRunning(): boolean {
+    return this.demo !== null;
+  }
+
   controls(): SimControl[] {
     const list: SimControl[] = [
+      {
+        id: 'demo',
+        label: 'Start a demo job',
+        run: () => {
+          if (this.demo) return;
+          // Started before the board data loaded or during startup: the tick loop starts it.
+          this.demo = { idleTicks: Math.ceil(DEMO_IDLE_MS / this.tickMs) };
+          if (this.loaded) this.startDemoJob();
+        },
+      },
       {
         id: 'require-update',
         label: 'Firmware update required (board firmware out of date)',
