@@ -44,6 +44,7 @@ import {
   type MachinesConfig,
 } from './machines';
 import { splitTarget } from './paths';
+import { bridgeSimSocket } from './sim-server';
 import { UserDirectory, checkSecret, dataDirPath, usersFilePath, type UserRecord } from './users';
 
 export type Families = Partial<Record<MachineKind, FamilyDescriptor>>;
@@ -1027,23 +1028,9 @@ export function createGateway(opts: GatewayOptions): Gateway {
       wss.handleUpgrade(req, socket, head, (client) => {
         openSockets.add(client);
         audited({ status: 101 });
-        const h = sim.socket(t.path + (t.rawQuery ? `?${t.rawQuery}` : ''), {
-          send: (d) => {
-            if (client.readyState === WebSocket.OPEN) client.send(d);
-          },
-          close: (code, reason) => client.close(code, reason),
-        });
-        if (!h) {
-          client.close(4404, 'no socket here');
-          return;
-        }
-        client.on('message', (data: RawData) =>
-          h.message(Buffer.isBuffer(data) ? data.toString('utf8') : String(data)),
+        bridgeSimSocket(client, sim, t.path + (t.rawQuery ? `?${t.rawQuery}` : ''), () =>
+          openSockets.delete(client),
         );
-        client.on('close', () => {
-          openSockets.delete(client);
-          h.close();
-        });
       });
       return;
     }

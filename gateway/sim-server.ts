@@ -43,6 +43,28 @@ export interface SimServer {
 }
 
 /** Turns a Node request into a fetch Request for a simulator. */
+/** Connects an accepted WebSocket to a simulator's socket at `path` (closes with 4404 when it has none). */
+export function bridgeSimSocket(client: WebSocket, sim: Simulator, path: string, onClose: () => void): void {
+  const h = sim.socket?.(path, {
+    send: (d) => {
+      if (client.readyState === WebSocket.OPEN) client.send(d);
+    },
+    close: (code, reason) => client.close(code, reason),
+  });
+  if (!h) {
+    client.close(4404, 'no socket here');
+    onClose();
+    return;
+  }
+  client.on('message', (data: RawData) =>
+    h.message(Buffer.isBuffer(data) ? data.toString('utf8') : String(data)),
+  );
+  client.on('close', () => {
+    onClose();
+    h.close();
+  });
+}
+
 export async function toFetchRequest(req: IncomingMessage, origin: string): Promise<Request> {
   const method = (req.method ?? 'GET').toUpperCase();
   const headers = new Headers();
@@ -154,23 +176,7 @@ export async function startSimServer(o: SimServerOptions): Promise<SimServer> {
     const path = req.url ?? '/';
     wss.handleUpgrade(req, socket, head, (client) => {
       sockets.add(client);
-      const h = sim.socket(path, {
-        send: (d) => {
-          if (client.readyState === WebSocket.OPEN) client.send(d);
-        },
-        close: (code, reason) => client.close(code, reason),
-      });
-      if (!h) {
-        client.close(4404, 'no socket here');
-        return;
-      }
-      client.on('message', (data: RawData) =>
-        h.message(Buffer.isBuffer(data) ? data.toString('utf8') : String(data)),
-      );
-      client.on('close', () => {
-        sockets.delete(client);
-        h.close();
-      });
+      bridgeSimSocket(client, sim, path, () => sockets.delete(client));
     });
   };
 
