@@ -1,3 +1,4 @@
+import { z } from 'zod';
 import { LinkError } from '../../fleet/errors';
 import {
   HttpClient,
@@ -105,6 +106,15 @@ export class DuetClient {
   /** Socket URL (same origin), with the session key as the document says. */
   socketUrl(): string {
     return this.http.url('/machine', { sessionKey: this.sessionKey ?? undefined });
+  }
+
+  /**
+   * `GET /machine/model`: the full object model, as raw JSON (the session validates it as it does
+   * socket frames). `/machine/model` rather than `/machine/status`: the OpenAPI file says status
+   * is "not supported before v3.4.6 or v3.5-b4"; model works on every DSF.
+   */
+  async modelRaw(): Promise<Record<string, unknown>> {
+    return this.http.json({ path: '/machine/model' }, z.record(z.string(), z.unknown()));
   }
 
   /** `GET /machine/status`: the full object model. */

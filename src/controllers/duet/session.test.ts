@@ -177,13 +177,45 @@ describe('DuetSession through msw', () => {
     await until(() => snap().link === 'needs-login', 60_000);
   });
 
-  it('without a socket keeps the HTTP session alive with GET /machine/noop', async () => {
-    sim.socket = () => null; // sockets refused (msw closes them)
+  it('while the socket cannot be opened, polls GET /machine/model and retries the socket', async () => {
+    const socket = sim.socket.bind(sim);
+    sim.socket = () => null; // sockets refused (msw closes them), e.g. a proxy without WebSocket
+    session.start();
+    await until(() => session.store.getState().transport === 'polling', 20_000);
+    expect(snap().link).toBe('online');
+    expect(status()).toBe('idle');
+    expect(session.store.getState().socketProblem).toMatch(/Socket closed/);
+    // The data follows the machine (slower).
+    sim.runCode('M32 "0:/gcodes/bracket.gcode"');
+    await until(() => status() === 'processing');
+    const polls = sim.requests.filter((r) => r === 'GET /machine/model').length;
+    expect(polls).toBeGreaterThan(1);
+    // The socket is retried; once it works, polling stops.
+    sim.socket = socket;
+    await until(() => session.store.getState().transport === 'socket', 40_000);
+    const after = sim.requests.filter((r) => r === 'GET /machine/model').length;
+    await advance(10_000, 100);
+    expect(sim.requests.filter((r) => r === 'GET /machine/model').length).toBe(after);
+    expect(snap().link).toBe('online');
+  });
+
+  it('a socket that comes back quickly does not switch to polling', async () => {
+    session.start();
+    await until(() => snap().link === 'online');
+    sim.closeSockets(1011, 'DCS is unavailable');
+    await until(() => snap().link === 'online' && session.store.getState().transport === 'socket', 20_000);
+    await advance(3000, 100);
+    expect(sim.requests).not.toContain('GET /machine/model');
+  });
+
+  it('without a socket and without a model keeps the link down (no polling success)', async () => {
+    sim.socket = () => null;
     session.start();
     await until(() => sim.requests.includes('GET /machine/connect'));
+    sim.password = 'secret'; // every later request is refused
+    sim.expireSessions();
     await advance(20_000, 100);
-    expect(['reconnecting', 'offline']).toContain(snap().link);
-    expect(sim.requests).toContain('GET /machine/noop');
+    expect(snap().link).not.toBe('online');
   });
 
   it('answers message boxes with M292 as the firmware expects', async () => {

@@ -3,7 +3,7 @@ import type { CommandDecl } from '../../fleet/commands';
 import { LinkTracker, type MachineSession, type SessionContext } from '../../fleet/contract';
 import { describeError, LinkError, protocolError } from '../../fleet/errors';
 import type { UploadProgress } from '../../fleet/http';
-import { SocketLink } from '../../fleet/link';
+import { backoffDelay, SocketLink } from '../../fleet/link';
 import type { MachineInfo, MachineSnapshot } from '../../fleet/types';
 import { JOBS_DIR } from './access';
 import { baseName, DuetClient, isAuthError, joinPath, quoteGcode } from './client';
@@ -34,6 +34,10 @@ export const PING_AFTER_MS = 2000;
 export const DEAD_AFTER_MS = 4000;
 export const NOOP_EVERY_MS = 4000;
 export const HISTORY_POINTS = 900;
+/** While the socket cannot be opened, the object model is polled this often (`GET /machine/model`). */
+export const POLL_EVERY_MS = 2000;
+/** Polling starts only when the socket has been down this long (a quick reconnect needs none). */
+export const POLL_AFTER_MS = 5000;
 
 export interface UploadState {
   id: number;
@@ -58,6 +62,10 @@ export interface DuetState {
   heightMap: { path: string | null; map: HeightMap | null; loading: boolean; error: string | null };
   /** Message box seqs the user closed locally (mode 0 has no button to answer). */
   dismissedBoxes: number[];
+  /** Where the model comes from: the socket, or polling while the socket cannot be opened. */
+  transport: 'socket' | 'polling' | null;
+  /** Why the socket is down (shown while polling). */
+  socketProblem: string | null;
 }
 
 export interface CodeArgs {
@@ -90,6 +98,14 @@ export class DuetSession implements MachineSession {
   private uploadSeq = 0;
   private uploadAborts = new Map<number, AbortController>();
   private generation = 0;
+  /** Socket failures in a row (its own backoff: polling keeps the link itself online). */
+  private socketFailures = 0;
+  private socketDownSince = 0;
+  private lastPollAt = 0;
+  private lastPollOkAt = 0;
+  private pollInFlight = false;
+  /** Messages already logged from a polled model (a polled model may repeat them). */
+  private polledMessages = new Set<string>();
 
   constructor(readonly ctx: SessionContext) {
     this.machine = ctx.machine;
@@ -105,6 +121,8 @@ export class DuetSession implements MachineSession {
       uploads: [],
       heightMap: { path: null, map: null, loading: false, error: null },
       dismissedBoxes: [],
+      transport: null,
+      socketProblem: null,
     }));
     this.cmd = this.declare();
     // By id ("duet.pause"), as the contract wants.
@@ -240,7 +258,7 @@ export class DuetSession implements MachineSession {
       this.authFailure(new LinkError('http', `socket refused (${reason || code})`, { status: 403 }));
       return;
     }
-    const err =
+    const err: LinkError =
       code === 1001 || code === 1011
         ? new LinkError(
             'vendor',
@@ -250,7 +268,60 @@ export class DuetSession implements MachineSession {
             'network',
             `Socket closed (${code}${reason ? `: ${reason}` : ''})${hadModel ? '' : ' before the object model arrived'}`,
           );
+    this.socketFailed(err);
+  }
+
+  /**
+   * The socket failed. While polling `GET /machine/model` works the machine stays online (the
+   * data is fresh, only slower) and the socket is retried on its own backoff; otherwise the link
+   * is down as usual.
+   */
+  private socketFailed(err: LinkError): void {
+    if (this.socketFailures === 0) this.socketDownSince = this.ctx.now();
+    this.socketFailures++;
+    this.store.setState({ socketProblem: err.message });
+    if (this.pollingHealthy()) {
+      this.scheduleReconnect(backoffDelay(this.socketFailures - 1));
+      return;
+    }
     this.scheduleReconnect(this.link.fail(err));
+  }
+
+  private pollingHealthy(): boolean {
+    return this.lastPollOkAt > 0 && this.ctx.now() - this.lastPollOkAt < POLL_EVERY_MS * 3;
+  }
+
+  /**
+   * Fallback while the socket cannot be opened (a proxy without WebSocket, a socket refused):
+   * the full object model by HTTP every POLL_EVERY_MS. It also keeps the session alive. Not a
+   * command: a read, never more than one in flight, discarded once the socket delivers again.
+   */
+  private async poll(): Promise<void> {
+    this.pollInFlight = true;
+    this.lastPollAt = this.ctx.now();
+    try {
+      const raw = await this.client.modelRaw();
+      if (this.stopped || this.gotFirst) return;
+      const r = takeFullModel(raw as JsonObject);
+      this.raw = r.model;
+      const seen = new Set<string>();
+      for (const m of r.messages) {
+        const k = JSON.stringify(m);
+        seen.add(k);
+        if (!this.polledMessages.has(k)) this.logMessage(m);
+      }
+      this.polledMessages = seen;
+      this.lastPollOkAt = this.ctx.now();
+      if (this.store.getState().transport !== 'polling') {
+        this.ctx.log.add('warning', 'link', 'Live updates unavailable: polling GET /machine/model');
+        this.store.setState({ transport: 'polling' });
+      }
+      this.acceptModel();
+    } catch (e) {
+      if (isAuthError(e)) this.client.sessionKey = null; // the next reconnect gets a new key
+    } finally {
+      this.pollInFlight = false;
+    }
   }
 
   /** Every 500 ms: PING after 2 s of silence, reconnect when no answer; noop without socket. */
@@ -261,9 +332,7 @@ export class DuetSession implements MachineSession {
     if (s && s.open && this.gotFirst) {
       if (this.pingSentAt !== null && now - this.pingSentAt >= DEAD_AFTER_MS) {
         this.closeSocket();
-        this.scheduleReconnect(
-          this.link.fail(new LinkError('timeout', 'No answer to PING: the link is dead')),
-        );
+        this.socketFailed(new LinkError('timeout', 'No answer to PING: the link is dead'));
         return;
       }
       if (this.pingSentAt === null && now - this.lastFrameAt >= PING_AFTER_MS) {
@@ -275,7 +344,21 @@ export class DuetSession implements MachineSession {
     // A socket that does not open at all counts as dead too.
     if (s && !this.gotFirst && now - this.lastFrameAt >= PING_AFTER_MS + DEAD_AFTER_MS) {
       this.closeSocket();
-      this.scheduleReconnect(this.link.fail(new LinkError('timeout', 'The object model did not arrive')));
+      this.socketFailed(new LinkError('timeout', 'The object model did not arrive'));
+      return;
+    }
+    // Without a live socket (after it failed), poll the object model so the page keeps its data.
+    if (
+      this.socketFailures > 0 &&
+      now - this.socketDownSince >= POLL_AFTER_MS &&
+      !this.gotFirst &&
+      this.client.sessionKey &&
+      this.link.state !== 'needs-login' &&
+      !this.pollInFlight &&
+      now - this.lastPollAt >= POLL_EVERY_MS
+    ) {
+      this.lastNoopAt = now; // the poll keeps the session alive too
+      void this.poll();
       return;
     }
     // Without a socket, keep the session alive (uploads, file operations) with noop.
@@ -318,6 +401,13 @@ export class DuetSession implements MachineSession {
       return;
     }
     const frame = parsed as JsonObject;
+    if (!this.gotFirst) {
+      // The socket is live again: polling ends.
+      this.socketFailures = 0;
+      this.lastPollOkAt = 0;
+      this.polledMessages.clear();
+      this.store.setState({ transport: 'socket', socketProblem: null });
+    }
     const r = this.gotFirst && this.raw ? applyPatch(this.raw, frame) : takeFullModel(frame);
     this.gotFirst = true;
     this.raw = r.model;

@@ -133,6 +133,61 @@ describe('DuetSimulator', () => {
     expect(all).toMatch(/Cancelled printing file 0:\/gcodes\/bracket.gcode/);
   });
 
+  it('demo control: prints a file from the card over minutes and starts it again, without commands', () => {
+    const demo = sim.controls().find((c) => c.id === 'demo');
+    expect(demo?.label).toBe('Start a demo job');
+    const job = sim.model['job'] as JsonObject;
+    const heat = (sim.model['heat'] as JsonObject)['heaters'] as JsonObject[];
+    demo!.run();
+    expect(sim.codes).toEqual([]); // through the simulator's own state, not G-code
+    expect(sim.status).toBe('processing');
+    const file = job['file'] as JsonObject;
+    expect(file['fileName']).toBe('0:/gcodes/bracket.gcode');
+    expect(sim.fs.get(String(file['fileName']))).toBeDefined();
+    // Warm-up first: heaters rise, nothing printed yet.
+    vi.advanceTimersByTime(5_000);
+    expect(heat[1]!['current'] as number).toBeGreaterThan(30);
+    expect(job['filePosition']).toBe(0);
+    // Then layers advance.
+    vi.advanceTimersByTime(90_000);
+    const layer1 = job['layer'] as number;
+    const pos1 = job['filePosition'] as number;
+    expect(layer1).toBeGreaterThan(0);
+    vi.advanceTimersByTime(60_000);
+    expect(job['layer'] as number).toBeGreaterThan(layer1);
+    expect(job['filePosition'] as number).toBeGreaterThan(pos1);
+    expect(sim.status).toBe('processing');
+    const fans = sim.model['fans'] as JsonObject[];
+    expect(fans[0]!['actualValue']).toBe(1); // part cooling on while printing
+    // It finishes (a 4-minute print plus warm-up) ...
+    vi.advanceTimersByTime(200_000);
+    expect(job['lastFileName']).toBe('0:/gcodes/bracket.gcode');
+    expect(job['lastFileCancelled']).toBe(false);
+    // ... and starts again after a pause.
+    vi.advanceTimersByTime(30_000);
+    expect(sim.status).toBe('processing');
+    expect((job['file'] as JsonObject)['fileName']).toBe('0:/gcodes/bracket.gcode');
+    expect(sim.demoRunning).toBe(true);
+  });
+
+  it('demo control: a cancel by the operator ends the demo; it waits while the machine is busy', () => {
+    sim.runCode('M37 P"0:/gcodes/gear.gcode"');
+    const demo = sim.controls().find((c) => c.id === 'demo')!;
+    demo.run();
+    expect(sim.status).toBe('simulating'); // the running job is left alone
+    vi.advanceTimersByTime(60_000);
+    vi.advanceTimersByTime(25_000);
+    expect(sim.status).toBe('processing'); // then the demo starts
+    sim.runCode('M25');
+    vi.advanceTimersByTime(1000);
+    sim.runCode('M0');
+    vi.advanceTimersByTime(1000);
+    expect(sim.status).toBe('idle');
+    vi.advanceTimersByTime(120_000);
+    expect(sim.status).toBe('idle');
+    expect(sim.demoRunning).toBe(false);
+  });
+
   it('M112 halts, M999 resets', () => {
     sim.runCode('M32 "0:/gcodes/bracket.gcode"');
     sim.runCode('M112');

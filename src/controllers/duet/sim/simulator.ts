@@ -98,6 +98,8 @@ export class DuetSimulator implements Simulator {
   readonly codes: string[] = [];
   /** While frozen the sockets stay open but nothing is sent (no patches, no PONG): a dead link. */
   frozen = false;
+  /** Refuse WebSocket upgrades (a proxy without WebSocket support): the console polls instead. */
+  refuseSockets = false;
   /** HTTP requests received ("GET /machine/noop"), for tests. */
   readonly requests: string[] = [];
   /** PING frames received, for tests. */
@@ -116,6 +118,8 @@ export class DuetSimulator implements Simulator {
   private keySeq = 0;
   private userSessionSeq = 0;
   private pluginSeq = 0;
+  /** Demo mode (control `demo`): the print to repeat, and when to start it next. */
+  private demo: { path: string; nextAt: number } | null = null;
 
   constructor(opts: DuetSimOptions) {
     this.now = opts.now ?? Date.now;
@@ -189,7 +193,7 @@ export class DuetSimulator implements Simulator {
 
   socket(path: string, sock: SimSocket): SimSocketHandler | null {
     const { pathname, query } = splitPath(path);
-    if (pathname !== '/machine') return null;
+    if (pathname !== '/machine' || this.refuseSockets) return null;
     const key = query.get('sessionKey');
     const session = key ? this.liveSession(key) : null;
     if ((key && !session) || (!key && this.password)) {
@@ -623,6 +627,13 @@ export class DuetSimulator implements Simulator {
     h['state'] = temp > 0 ? 'active' : 'off';
   }
 
+  private setFan(i: number, v: number): void {
+    const f = arr(this.model['fans'])[i];
+    if (!isObject(f)) return;
+    f['requestedValue'] = v;
+    f['actualValue'] = v;
+  }
+
   private heatersOff(): void {
     for (const h of this.heaters()) {
       if (!h) continue;
@@ -690,6 +701,12 @@ export class DuetSimulator implements Simulator {
         this.message(0, `Cancelled printing file ${j.path}, print time was ${hm}`);
     }
     this.job = null;
+    // Demo mode repeats a finished print after a short pause; a cancel or an emergency stop is
+    // someone taking over the machine, so the demo ends there.
+    if (this.demo) {
+      if (how === 'done') this.demo.nextAt = this.now() + DEMO_PAUSE_MS;
+      else this.demo = null;
+    }
     job['file'] = { ...EMPTY_JOB_FILE, thumbnails: [], filament: [] };
     job['filePosition'] = 0;
     job['duration'] = null;
@@ -699,6 +716,7 @@ export class DuetSimulator implements Simulator {
     job['warmUpDuration'] = null;
     job['timesLeft'] = { filament: null, file: null, slicer: null };
     this.heatersOff();
+    this.setFan(0, 0);
     if (how !== 'aborted') this.setStatus('idle');
   }
 
@@ -793,6 +811,8 @@ export class DuetSimulator implements Simulator {
       const cur = Number(h['current']);
       h['current'] = Math.round((cur + (target - cur) * (1 - Math.exp(-dt / tau))) * 10) / 10;
     });
+    const hotend = this.heaters()[1];
+    if (hotend) this.setFan(1, Number(hotend['current']) > 45 ? 1 : 0);
     const sensors = arr(o(this.model['sensors'])['analog']);
     sensors.forEach((s, i) => {
       const h = this.heaters()[i];
@@ -807,6 +827,7 @@ export class DuetSimulator implements Simulator {
       else if (status === 'cancelling') this.finishJob('cancelled');
     }
     this.advanceJob(dt);
+    if (this.demo && !this.job && this.status === 'idle' && now >= this.demo.nextAt) this.startDemoJob();
     const box = st['messageBox'];
     if (
       isObject(box) &&
@@ -858,9 +879,53 @@ export class DuetSimulator implements Simulator {
       ax['userPosition'] = v;
       ax['machinePosition'] = v;
     });
+    // Part cooling on from layer 2 (as slicers do); the hotend fan follows its heater (>45 °C).
+    this.setFan(0, j.simulate || layer < 2 ? 0 : 1);
     const ex = arr(o(this.model['move'])['extruders'])[0];
     if (isObject(ex)) ex['position'] = Math.round(frac * 800 * 10) / 10;
     if (frac >= 1) this.finishJob('done');
+  }
+
+  // ------------------------------------------------------------------ demo
+
+  /**
+   * Start the demo: a real print of a job file on the simulated card (heaters warm up, then the
+   * layers advance over about four minutes), repeated while the demo runs. Works only on the
+   * simulator's own state, as a person at the machine starting it from the panel would: nothing
+   * goes through the console's commands. Runs again when the machine is busy: it waits for idle.
+   */
+  startDemo(): void {
+    const path = this.fs.get(DEMO_FILE) ? DEMO_FILE : this.firstJobFile();
+    if (!path) return;
+    this.demo = { path, nextAt: this.now() };
+    if (!this.job && this.status === 'idle') this.startDemoJob();
+  }
+
+  get demoRunning(): boolean {
+    return this.demo !== null;
+  }
+
+  private startDemoJob(): void {
+    const d = this.demo;
+    if (!d) return;
+    // The file may have been deleted or renamed meanwhile: take another one, or stop.
+    const path = this.fs.get(d.path) ? d.path : this.firstJobFile();
+    if (!path) {
+      this.demo = null;
+      return;
+    }
+    d.path = path;
+    const err = this.startJob(path, false);
+    if (err) {
+      this.demo = null;
+      this.message(1, `Demo: ${err}`);
+    }
+    this.flush();
+  }
+
+  private firstJobFile(): string | null {
+    for (const p of this.fs.files.keys()) if (p.startsWith('0:/gcodes/') && /\.g(code)?$/i.test(p)) return p;
+    return null;
   }
 
   // ------------------------------------------------------------------ developer panel
@@ -874,6 +939,7 @@ export class DuetSimulator implements Simulator {
       },
     }));
     return [
+      { id: 'demo', label: 'Start a demo job', run: () => this.startDemo() },
       {
         id: 'heater-fault',
         label: 'Hotend heater fault (H1)',
@@ -899,6 +965,14 @@ export class DuetSimulator implements Simulator {
         },
       },
       {
+        id: 'no-socket',
+        label: 'Refuse WebSockets (proxy without WebSocket) on/off',
+        run: () => {
+          this.refuseSockets = !this.refuseSockets;
+          if (this.refuseSockets) this.closeSockets(1001, 'WebSocket not available');
+        },
+      },
+      {
         id: 'warning',
         label: 'Controller warning message',
         run: () => this.message(1, 'Driver 0.3 warning: phase A may be disconnected'),
@@ -907,6 +981,10 @@ export class DuetSimulator implements Simulator {
     ];
   }
 }
+
+/** The demo print (on the seeded card) and the idle time between two runs. */
+const DEMO_FILE = '0:/gcodes/bracket.gcode';
+const DEMO_PAUSE_MS = 20_000;
 
 const MODE_NAMES: Record<number, string> = {
   0: 'no buttons',

@@ -106,7 +106,7 @@ function JobPanel({ session }: { session: DuetSession }) {
               <ProgressBar value={d.progress} label="Job progress" />
             </div>
             <div style={{ fontSize: 28, fontWeight: 700 }} data-testid="duet-job-progress">
-              {formatPercent(d.progress)}
+              {formatPercent(d.progress === null ? null : Math.floor(d.progress * 100) / 100)}
             </div>
           </div>
           <KeyValues

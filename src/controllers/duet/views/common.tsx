@@ -284,8 +284,25 @@ export function DuetFrame({ session, children }: { session: DuetSession; childre
   return (
     <div data-testid="duet-page">
       <EstopBar session={session} />
+      <PollingNotice session={session} />
       <MessageBoxDialog session={session} />
       {children}
     </div>
+  );
+}
+
+/** While the socket is down but `GET /machine/model` answers, the data is polled: say so. */
+function PollingNotice({ session }: { session: DuetSession }) {
+  const { transport, problem } = useStoreSelect(session.store, (s) => ({
+    transport: s.transport,
+    problem: s.socketProblem,
+  }));
+  const link = useSnapshot(session.ctx, (s) => s.link);
+  if (transport !== 'polling' || link !== 'online') return null;
+  return (
+    <Notice tone="warn" testId="duet-polling">
+      Live updates unavailable{problem ? ` (${problem})` : ''}: the status is polled every 2 s and may lag.
+      The live connection is retried.
+    </Notice>
   );
 }
