@@ -38,6 +38,30 @@ describe('CommandRunner', () => {
     expect(t.ctx.log.store.getState().entries.at(-1)?.text).toContain('not sent');
   });
 
+  it('still tries a stop once while the link is down, and never retries it', async () => {
+    const t = setup();
+    t.ctx.snapshot.setState({ link: 'reconnecting' });
+    let attempts = 0;
+    const estop: CommandDecl = {
+      id: 'test.estop',
+      label: 'Emergency stop',
+      hazard: 'stop',
+      role: 'operator',
+      confirm: false,
+      perform: async () => {
+        attempts++;
+        throw new Error('Cannot reach the controller');
+      },
+    };
+    await expect(t.ctx.commands.run(estop, undefined)).rejects.toThrow('Cannot reach');
+    t.ctx.snapshot.setState({ link: 'online' });
+    await Promise.resolve();
+    expect(attempts).toBe(1);
+    // A job command is still refused while the link is down.
+    t.ctx.snapshot.setState({ link: 'offline' });
+    await expect(t.ctx.commands.run(t.pause, undefined)).rejects.toBeInstanceOf(CommandRefused);
+  });
+
   it('cannot send the same command twice while it is in flight', async () => {
     const t = setup();
     t.ctx.snapshot.setState({ link: 'online' });

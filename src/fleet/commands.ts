@@ -94,7 +94,10 @@ export class CommandRunner {
     const who = this.principal();
     if (!roleAtLeast(who.role, cmd.role)) return `Needs the ${cmd.role} role (you are ${who.role})`;
     const snap = this.snapshot();
-    if (snap.link !== 'online') return 'The machine is not connected: commands are not queued';
+    // A stop is always worth one attempt (the socket may be down while HTTP still works); it is
+    // sent once, now, and never queued or retried. Everything else waits for a live link.
+    if (snap.link !== 'online' && !(cmd.hazard === 'stop' && snap.link !== 'connecting'))
+      return 'The machine is not connected: commands are not queued';
     if (this.state.getState().inFlight[cmd.id]) return 'Already being sent';
     const avail = cmd.available?.(snap) ?? true;
     return avail === true ? null : avail;
