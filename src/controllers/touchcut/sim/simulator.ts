@@ -5,6 +5,7 @@ import {
   type SimOptions,
   type Simulator,
 } from '../../../fleet/sim';
+import { TOUCHCUT_PRIVILEGES } from '../client';
 import { MANUAL_EXAMPLE_API_KEY } from './data/manual';
 import { Canvas } from './png';
 import {
@@ -37,25 +38,7 @@ import {
  */
 
 export const SIM_WEB_ACCESS = 'Web Access';
-const ALL_PRIVILEGES = [
-  SIM_WEB_ACCESS,
-  'Modify Setup Params',
-  'Modify System Policies',
-  'Add Remove Modify System Security',
-  'Web Control Move Part Unloader',
-  'Monitor System',
-  'Add Remove Tools',
-  'Add Remove Materials',
-  'Add Remove Tool Processes',
-  'Modify General Settings Advanced',
-  'Modify Tools Advanced',
-  'Modify Tool Processes Advanced',
-  'Modify Tuning',
-  'Confirm Maintenance Done',
-  'Modify Dross Bin Settings',
-  'Modify Current User',
-  'Modify General Settings',
-];
+const ALL_PRIVILEGES = [SIM_WEB_ACCESS, ...TOUCHCUT_PRIVILEGES];
 
 export interface SimGroup {
   name: string;
