@@ -1,0 +1,360 @@
+import http, { type IncomingMessage, type ServerResponse } from 'node:http';
+import https from 'node:https';
+import { isIP } from 'node:net';
+import { WebSocket } from 'ws';
+import { defaultDecision, type AccessDecision, type AccessRequest } from '../src/fleet/access';
+import type { FamilyDescriptor } from '../src/fleet/contract';
+import { FaultySimulator } from '../src/fleet/sim';
+import { roleAtLeast, type MachineKind, type Role } from '../src/fleet/types';
+import { AuditLog, type AuditEntry } from './audit';
+import {
+  DEFAULT_ELEVATION_S,
+  DEFAULT_IDLE,
+  DEFAULT_RATE_LIMIT,
+  FailureLimiter,
+  SESSION_COOKIE,
+  SessionStore,
+  type ConsoleSession,
+  type IdleTimeouts,
+  type RateLimitOptions,
+} from './auth';
+import { type DiscoveryOptions } from './discovery';
+import { clientAddress, parseCookies, sendJson } from './http-util';
+import { loadMachines, redact, secretForms, type MachineEntry, type MachinesConfig } from './machines';
+import { UserDirectory, dataDirPath, usersFilePath } from './users';
+
+export type Families = Partial<Record<MachineKind, FamilyDescriptor>>;
+
+export interface GatewayOptions {
+  machinesFile?: string;
+  dataDir?: string;
+  usersFile?: string;
+  env?: NodeJS.ProcessEnv;
+  cwd?: string;
+  /** Already loaded machines (the plugin validates at config time). */
+  machines?: MachinesConfig;
+  /** The family registry (src/controllers/families.ts). */
+  families: Families;
+  /** Clock for sessions, rate limits and elevation (tests). */
+  now?: () => number;
+  /** Per-request timeout towards a controller, ms (default 15 s; SHOPDECK_PROXY_TIMEOUT_MS). */
+  timeoutMs?: number;
+  /** Idle timeouts per role, seconds (SHOPDECK_IDLE_<ROLE>_S). */
+  idleTimeoutS?: Partial<IdleTimeouts>;
+  /** How long a PIN elevation lasts, seconds (SHOPDECK_ELEVATION_S). */
+  elevationS?: number;
+  rateLimit?: Partial<RateLimitOptions>;
+  discovery?: Partial<DiscoveryOptions>;
+  /**
+   * Host names the console may be reached by (DNS rebinding protection, as Vite's
+   * `server.allowedHosts`): `true` for any; IP addresses and localhost are always allowed.
+   */
+  allowedHosts?: true | readonly string[];
+}
+
+export interface Principal {
+  name: string;
+  role: Role;
+  machines: string[] | null;
+  /** The operator whose tablet a supervisor unlocked with a PIN. */
+  onBehalfOf?: string;
+}
+
+export interface Who {
+  mode: 'open' | 'secured';
+  principal: Principal | null;
+  session: ConsoleSession | null;
+  expired: boolean;
+}
+
+export function envNumber(env: NodeJS.ProcessEnv, key: string): number | undefined {
+  const v = env[key];
+  if (!v) return undefined;
+  const n = Number(v);
+  return Number.isFinite(n) && n > 0 ? n : undefined;
+}
+
+/** What every part of the gateway shares: configuration, identity, audit, upstream bookkeeping. */
+export interface GatewayContext {
+  readonly opts: GatewayOptions;
+  readonly env: NodeJS.ProcessEnv;
+  readonly cwd: string;
+  readonly now: () => number;
+  readonly config: MachinesConfig;
+  readonly dataDir: string;
+  readonly usersFile: string;
+  readonly users: UserDirectory;
+  readonly audit: AuditLog;
+  readonly timeoutMs: number;
+  readonly idle: IdleTimeouts;
+  readonly elevationMs: number;
+  readonly sessions: SessionStore;
+  readonly limiter: FailureLimiter;
+  readonly byId: Map<string, MachineEntry>;
+  readonly secretsOf: Map<string, string[]>;
+  readonly allSecrets: string[];
+  readonly sims: Map<string, FaultySimulator>;
+  readonly openSockets: Set<WebSocket>;
+  readonly pending: Set<http.ClientRequest>;
+  readonly httpAgent: http.Agent;
+  readonly httpsAgent: https.Agent;
+  readonly state: { closed: boolean };
+  hostAllowed(req: IncomingMessage): boolean;
+  record(e: Omit<AuditEntry, 'time'>): void;
+  scrub(text: string): string;
+  who(req: IncomingMessage, touch: boolean): Who;
+  sessionBody(w: Who): unknown;
+  cookie(req: IncomingMessage, token: string, maxAge?: number): string;
+  mayUseMachine(p: Principal, id: string): boolean;
+  needLogin(res: ServerResponse, w: Who): void;
+  classify(m: MachineEntry, req: AccessRequest): AccessDecision;
+  authorize(w: Who, m: MachineEntry, d: AccessDecision): Verdict;
+  simulatorFor(m: MachineEntry): FaultySimulator | null;
+}
+
+export type Verdict =
+  { ok: true; principal: Principal } | { ok: false; status: number; body: Record<string, unknown> };
+
+export function createContext(opts: GatewayOptions): GatewayContext {
+  const env = opts.env ?? process.env;
+  const cwd = opts.cwd ?? process.cwd();
+  const now = opts.now ?? Date.now;
+  const config = opts.machines ?? loadMachines({ machinesFile: opts.machinesFile, env, cwd });
+  const dataDir = dataDirPath({ dataDir: opts.dataDir, env, cwd });
+  const usersFile = usersFilePath({ usersFile: opts.usersFile, dataDir, env, cwd });
+  const users = new UserDirectory(usersFile);
+  const audit = new AuditLog(dataDir);
+  const timeoutMs = opts.timeoutMs ?? envNumber(env, 'SHOPDECK_PROXY_TIMEOUT_MS') ?? 15_000;
+  const idle: IdleTimeouts = {
+    viewer: opts.idleTimeoutS?.viewer ?? envNumber(env, 'SHOPDECK_IDLE_VIEWER_S') ?? DEFAULT_IDLE.viewer,
+    operator:
+      opts.idleTimeoutS?.operator ?? envNumber(env, 'SHOPDECK_IDLE_OPERATOR_S') ?? DEFAULT_IDLE.operator,
+    supervisor:
+      opts.idleTimeoutS?.supervisor ??
+      envNumber(env, 'SHOPDECK_IDLE_SUPERVISOR_S') ??
+      DEFAULT_IDLE.supervisor,
+  };
+  const elevationMs =
+    (opts.elevationS ?? envNumber(env, 'SHOPDECK_ELEVATION_S') ?? DEFAULT_ELEVATION_S) * 1000;
+  const sessions = new SessionStore(idle, now);
+  const limiter = new FailureLimiter({ ...DEFAULT_RATE_LIMIT, ...opts.rateLimit }, now);
+  const byId = new Map(config.machines.map((m) => [m.id, m]));
+  const secretsOf = new Map(config.machines.map((m) => [m.id, secretForms(m.secrets)]));
+  const allSecrets = [...new Set(config.machines.flatMap((m) => secretForms(m.secrets)))];
+  const sims = new Map<string, FaultySimulator>();
+  const openSockets = new Set<WebSocket>();
+  const pending = new Set<http.ClientRequest>();
+  const httpAgent = new http.Agent({ keepAlive: false });
+  // Controllers (TouchCut) use self-signed certificates: accepted on this agent only.
+  const httpsAgent = new https.Agent({ keepAlive: false, rejectUnauthorized: false });
+  const state = { closed: false };
+
+  const allowedHosts = opts.allowedHosts ?? true;
+  function hostAllowed(req: IncomingMessage): boolean {
+    if (allowedHosts === true) return true;
+    let hostname: string;
+    try {
+      hostname = new URL(`http://${req.headers.host ?? ''}`).hostname.replace(/^\[|\]$/g, '');
+    } catch {
+      return false;
+    }
+    if (!hostname) return false;
+    if (hostname === 'localhost' || hostname.endsWith('.localhost') || isIP(hostname)) return true;
+    return allowedHosts.some((a) =>
+      a.startsWith('.') ? hostname === a.slice(1) || hostname.endsWith(a) : hostname === a.toLowerCase(),
+    );
+  }
+
+  const nowIso = (): string => new Date(now()).toISOString();
+  const record = (e: Omit<AuditEntry, 'time'>): void => {
+    try {
+      audit.append({ ...e, time: nowIso() });
+    } catch (err) {
+      console.error(`shopdeck: could not write the audit log: ${String(err)}`);
+    }
+  };
+  const scrub = (text: string): string => redact(text, allSecrets);
+  // ---------------------------------------------------------------- who is asking
+
+  function who(req: IncomingMessage, touch: boolean): Who {
+    if (users.mode === 'open') {
+      return {
+        mode: 'open',
+        principal: { name: 'anonymous', role: 'supervisor', machines: null },
+        session: null,
+        expired: false,
+      };
+    }
+    const token = parseCookies(req.headers.cookie)[SESSION_COOKIE];
+    const s = sessions.get(token, touch);
+    if (s && 'expired' in s) {
+      record({
+        type: 'session-expired',
+        result: 'ok',
+        user: s.expired.user,
+        source: 'gateway',
+        address: clientAddress(req),
+        detail: `no activity for ${sessions.idleSeconds(s.expired.role)} s`,
+      });
+      return { mode: 'secured', principal: null, session: null, expired: true };
+    }
+    if (!s) return { mode: 'secured', principal: null, session: null, expired: false };
+    const u = users.find(s.user);
+    if (!u) {
+      sessions.dropUser(s.user);
+      return { mode: 'secured', principal: null, session: null, expired: false };
+    }
+    if (s.elevation) {
+      const sup = users.find(s.elevation.supervisor);
+      if (sup && sup.role === 'supervisor') {
+        return {
+          mode: 'secured',
+          principal: { name: sup.name, role: 'supervisor', machines: sup.machines, onBehalfOf: u.name },
+          session: s,
+          expired: false,
+        };
+      }
+      s.elevation = null;
+    }
+    return {
+      mode: 'secured',
+      principal: { name: u.name, role: u.role, machines: u.machines },
+      session: s,
+      expired: false,
+    };
+  }
+
+  /**
+   * `GET /api/session`. `user` is who the gateway acts as right now: during a PIN elevation
+   * the supervisor, with the operator whose tablet it is in `elevation.operator`.
+   */
+  function sessionBody(w: Who): unknown {
+    const u = w.session ? users.find(w.session.user) : null;
+    const p = w.mode === 'secured' ? w.principal : null;
+    return {
+      mode: w.mode,
+      user: p ? { name: p.name, role: p.role, machines: p.machines } : null,
+      idleTimeoutS: u ? sessions.idleSeconds(w.session?.role ?? u.role) : null,
+      elevation:
+        w.session?.elevation && p?.onBehalfOf && u
+          ? {
+              supervisor: w.session.elevation.supervisor,
+              until: new Date(w.session.elevation.until).toISOString(),
+              operator: { name: u.name, role: u.role, machines: u.machines },
+            }
+          : null,
+      expired: w.expired,
+    };
+  }
+
+  function cookie(req: IncomingMessage, token: string, maxAge?: number): string {
+    const secure = (req.socket as { encrypted?: boolean }).encrypted ? '; Secure' : '';
+    const age = maxAge !== undefined ? `; Max-Age=${maxAge}` : '';
+    return `${SESSION_COOKIE}=${token}; Path=/; HttpOnly; SameSite=Strict${secure}${age}`;
+  }
+
+  function mayUseMachine(p: Principal, id: string): boolean {
+    return p.machines === null || p.machines.includes(id);
+  }
+
+  function needLogin(res: ServerResponse, w: Who): void {
+    sendJson(res, 401, {
+      error: w.expired ? 'your session expired: log in again' : 'log in first',
+      needs: 'viewer',
+      login: true,
+    });
+  }
+
+  // ---------------------------------------------------------------- access control
+
+  function classify(m: MachineEntry, req: AccessRequest): AccessDecision {
+    const fam = opts.families[m.kind];
+    if (!fam) return defaultDecision(req);
+    try {
+      return fam.access(req);
+    } catch (e) {
+      return {
+        role: 'supervisor',
+        command: true,
+        label: `${req.method} ${req.path} (the access rule failed: supervisor only; ${e instanceof Error ? e.message : String(e)})`,
+      };
+    }
+  }
+
+  function authorize(w: Who, m: MachineEntry, d: AccessDecision): Verdict {
+    if (!w.principal) {
+      return {
+        ok: false,
+        status: 401,
+        body: {
+          error: w.expired ? 'your session expired: log in again' : 'log in first',
+          needs: d.role,
+          login: true,
+        },
+      };
+    }
+    const p = w.principal;
+    if (!mayUseMachine(p, m.id)) {
+      return {
+        ok: false,
+        status: 403,
+        body: { error: `${p.name} may not use the machine ${m.id}`, needs: d.role },
+      };
+    }
+    if (!roleAtLeast(p.role, d.role)) {
+      return {
+        ok: false,
+        status: 403,
+        body: { error: `${d.label}: needs the ${d.role} role (${p.name} is ${p.role})`, needs: d.role },
+      };
+    }
+    return { ok: true, principal: p };
+  }
+
+  function simulatorFor(m: MachineEntry): FaultySimulator | null {
+    let sim = sims.get(m.id);
+    if (sim) return sim;
+    const fam = opts.families[m.kind];
+    if (!fam) return null;
+    sim = new FaultySimulator(fam.createSimulator({ id: m.id, name: m.name }));
+    sims.set(m.id, sim);
+    return sim;
+  }
+
+  return {
+    opts,
+    env,
+    cwd,
+    now,
+    config,
+    dataDir,
+    usersFile,
+    users,
+    audit,
+    timeoutMs,
+    idle,
+    elevationMs,
+    sessions,
+    limiter,
+    byId,
+    secretsOf,
+    allSecrets,
+    sims,
+    openSockets,
+    pending,
+    httpAgent,
+    httpsAgent,
+    hostAllowed,
+    record,
+    scrub,
+    who,
+    sessionBody,
+    cookie,
+    mayUseMachine,
+    needLogin,
+    classify,
+    authorize,
+    simulatorFor,
+    state,
+  };
+}
