@@ -38,6 +38,7 @@ function dummy(): string {
 
 export function createApi(ctx: GatewayContext) {
   const {
+    revalidateSockets,
     opts,
     env,
     now,
@@ -138,6 +139,7 @@ export function createApi(ctx: GatewayContext) {
         const token = parseCookies(req.headers.cookie)[SESSION_COOKIE];
         const s = sessions.get(token, false);
         if (token) sessions.delete(token);
+        revalidateSockets();
         if (s && !('expired' in s))
           record({ type: 'logout', result: 'ok', user: s.user, source: 'gateway', address });
         sendJson(

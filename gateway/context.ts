@@ -99,6 +99,13 @@ export interface GatewayContext {
   readonly httpAgent: http.Agent;
   readonly httpsAgent: https.Agent;
   readonly state: { closed: boolean };
+  /**
+   * Bridged browser sockets and who opened them: re-checked on logout, expiry, removal and role
+   * change (`revalidateSockets`), and closed when their user may no longer hold them.
+   */
+  readonly liveSockets: Map<WebSocket, LiveSocket>;
+  /** Closes every bridged socket whose session, user, role or machine access is gone. */
+  revalidateSockets(): void;
   hostAllowed(req: IncomingMessage): boolean;
   record(e: Omit<AuditEntry, 'time'>): void;
   scrub(text: string): string;
@@ -110,6 +117,15 @@ export interface GatewayContext {
   classify(m: MachineEntry, req: AccessRequest): AccessDecision;
   authorize(w: Who, m: MachineEntry, d: AccessDecision): Verdict;
   simulatorFor(m: MachineEntry): FaultySimulator | null;
+}
+
+export interface LiveSocket {
+  machine: string;
+  /** The console session's token (null in open mode). */
+  token: string | null;
+  /** The least role the socket needs (its access decision). */
+  needs: Role;
+  close(code: number, reason: string): void;
 }
 
 export type Verdict =
@@ -148,6 +164,7 @@ export function createContext(opts: GatewayOptions): GatewayContext {
   // Controllers (TouchCut) use self-signed certificates: accepted on this agent only.
   const httpsAgent = new https.Agent({ keepAlive: false, rejectUnauthorized: false });
   const state = { closed: false };
+  const liveSockets = new Map<WebSocket, LiveSocket>();
 
   const allowedHosts = opts.allowedHosts ?? true;
   function hostAllowed(req: IncomingMessage): boolean {
@@ -321,6 +338,34 @@ export function createContext(opts: GatewayOptions): GatewayContext {
     return sim;
   }
 
+  function revalidateSockets(): void {
+    if (users.mode === 'open') return;
+    for (const [sock, live] of liveSockets) {
+      const why = socketProblem(live);
+      if (why) {
+        liveSockets.delete(sock);
+        live.close(4401, why);
+      }
+    }
+  }
+
+  /** Why a bridged socket may no longer stay open, or null. */
+  function socketProblem(live: LiveSocket): string | null {
+    const s = sessions.get(live.token ?? undefined, false);
+    if (!s) return 'logged out';
+    if ('expired' in s) return 'session expired';
+    const u = users.find(s.user);
+    if (!u) return 'user removed';
+    const name = s.elevation ? s.elevation.supervisor : u.name;
+    const p = s.elevation ? users.find(s.elevation.supervisor) : u;
+    if (!p) return 'user removed';
+    if (!roleAtLeast(s.elevation ? 'supervisor' : p.role, live.needs))
+      return `${name} no longer has the ${live.needs} role`;
+    if (!mayUseMachine({ name, role: p.role, machines: p.machines }, live.machine))
+      return `${name} may no longer use ${live.machine}`;
+    return null;
+  }
+
   return {
     opts,
     env,
@@ -356,5 +401,7 @@ export function createContext(opts: GatewayOptions): GatewayContext {
     authorize,
     simulatorFor,
     state,
+    liveSockets,
+    revalidateSockets,
   };
 }
