@@ -1,4 +1,5 @@
 import DOMPurify, { type DOMPurify as DOMPurifyInstance } from 'dompurify';
+import { resolveWithin, safeExternalHref } from '../ui/safe-url';
 
 /**
  * Descriptions are HTML from the controller: untrusted. Two passes, never raw `innerHTML`:
@@ -7,9 +8,15 @@ import DOMPurify, { type DOMPurify as DOMPurifyInstance } from 'dompurify';
  *    fresh tree, keeping only allowed elements and attributes. In a browser this changes nothing
  *    after DOMPurify; it guarantees the allow-list where DOMPurify cannot work fully (test DOMs).
  * Images (Prunt's `<image src="extras/images/stepper_1.png">`, read as `<img>`) may only come from
- * the controller itself: relative sources are resolved against `assetBase` (the machine's
- * `/machines/<id>` prefix); any other source is dropped. Inline styles are dropped (they could
- * cover the page); CSS keeps images within the panel.
+ * the machine itself: the source is resolved as the browser would against `assetBase` (the
+ * machine's `/machines/<id>` prefix) and kept only when the result stays on the console's origin
+ * under `/machines/<id>/` (`resolveWithin`, src/ui/safe-url.ts). `%2e%2e/other/…`, `/api/…`,
+ * `//host`, `data:`, `blob:` and every other source is dropped with its `<img>`. (`data:` images
+ * would be harmless as images, but Prunt never sends one: not needed, so not allowed.)
+ * Links are kept only to external `https:` pages (`safeExternalHref`) and open in a new tab
+ * without opener or referrer; any other link is unwrapped to its text.
+ * Inline styles, `srcset`, `<base>`, `<meta>`, `<link>`, forms and every other attribute or element
+ * are dropped (styles could cover the page); CSS keeps images within the panel.
  */
 
 const ALLOWED_TAGS = [
@@ -47,6 +54,20 @@ const DROP_WITH_CONTENT = new Set([
   'math',
   'head',
   'title',
+  'base',
+  'meta',
+  'link',
+  'form',
+  'button',
+  'input',
+  'frame',
+  'frameset',
+  'applet',
+  'picture',
+  'source',
+  'video',
+  'audio',
+  'portal',
 ]);
 
 let purifier: DOMPurifyInstance | null | undefined;
@@ -65,17 +86,13 @@ function instance(): DOMPurifyInstance | null {
   return purifier;
 }
 
-/** Relative paths only ("extras/images/x.png", "/extras/…"), made to go through the machine prefix. */
+/**
+ * An image source from a description, resolved against the machine's prefix (`/machines/<id>`)
+ * exactly as the browser resolves it; null unless it stays under `/machines/<id>/` on the
+ * console's origin.
+ */
 export function resolveAsset(src: string, base: string): string | null {
-  const s = src.trim();
-  if (!s || /^[a-z][a-z0-9+.-]*:/i.test(s) || s.startsWith('//') || s.includes('..') || s.includes('\\'))
-    return null;
-  return `${base.replace(/\/$/, '')}/${s.replace(/^\.?\//, '')}`;
-}
-
-function safeHref(href: string): string | null {
-  const h = href.trim();
-  return /^(https?:|mailto:)/i.test(h) ? h : null;
+  return resolveWithin(src, base);
 }
 
 function rebuild(html: string, base: string): string {
@@ -106,7 +123,7 @@ function rebuild(html: string, base: string): string {
           if (r) n.setAttribute('src', r);
         } else if (a === 'href') {
           if (tag !== 'a') continue;
-          const h = safeHref(v);
+          const h = safeExternalHref(v);
           if (h) n.setAttribute('href', h);
         } else n.setAttribute(a, v);
       }
@@ -115,6 +132,10 @@ function rebuild(html: string, base: string): string {
         if (!n.getAttribute('alt')) n.setAttribute('alt', 'Board documentation image');
       }
       if (tag === 'a') {
+        if (!n.getAttribute('href')) {
+          copy(el, to); // not a safe external link: keep its text only
+          continue;
+        }
         n.setAttribute('target', '_blank');
         n.setAttribute('rel', 'noopener noreferrer');
       }

@@ -17,6 +17,7 @@ import {
   uploadsSchema,
 } from './wire';
 import { parseJsonLenient, NOT_JSON } from '../../fleet/http';
+import { resolveWithin } from '../../ui/safe-url';
 
 /**
  * Typed client for the Prunt web API, one method per endpoint, on the console's HttpClient
@@ -140,12 +141,27 @@ export class PruntClient {
     return this.http.json({ path: '/uploads/' }, uploadsSchema);
   }
 
-  fileUrl(name: string): string {
-    return this.http.url(`/uploads/${encodeURIComponent(name)}`);
+  /**
+   * The URL of an uploaded file, or null when the name (it comes from the controller's list) would
+   * lead anywhere but a file in this machine's `/machines/<id>/uploads/`: `..`, `.`, names with a
+   * slash or backslash (`../../acc-laser/system?x` is sent as one encoded segment, which a proxy
+   * that decodes once would read as a way out).
+   */
+  fileUrl(name: string): string | null {
+    return resolveWithin(encodeURIComponent(name), this.http.url('/uploads/'));
+  }
+
+  /** The checked controller path of an uploaded file; throws for a name `fileUrl` refuses. */
+  private filePath(name: string): string {
+    if (this.fileUrl(name) === null)
+      throw new LinkError('protocol', `Refused file name "${preview(name, 60)}": not a file in /uploads/`, {
+        path: '(root)',
+      });
+    return `/uploads/${encodeURIComponent(name)}`;
   }
 
   async download(name: string): Promise<Blob> {
-    return (await this.http.blob({ path: `/uploads/${encodeURIComponent(name)}` })).blob;
+    return (await this.http.blob({ path: this.filePath(name) })).blob;
   }
 
   /** `PUT /uploads/<name>` with progress. */
@@ -154,10 +170,11 @@ export class PruntClient {
     body: Blob | string,
     o: CommandOpts & { onProgress?: (p: UploadProgress) => void; signal?: AbortSignal },
   ) {
+    const url = this.http.url(this.filePath(name));
     try {
       await uploadWithProgress({
         method: 'PUT',
-        url: this.fileUrl(name),
+        url,
         body,
         headers: { 'X-Shopdeck-Command': o.commandId },
         ...(o.onProgress ? { onProgress: o.onProgress } : {}),

@@ -1,10 +1,24 @@
 import { useEffect, useMemo, useRef, useState, type ReactNode } from 'react';
 import { CommandButton, useSnapshot, useStoreSelect } from '../../../fleet/react';
 import { Button, Dialog, Field, Notice } from '../../../ui';
+import { imageDataUrl } from '../../../ui/safe-url';
 import type { DuetSession } from '../session';
 import { validateBoxValue } from '../session';
 import type { MessageBox, Thumbnail as ThumbnailData } from '../wire';
 import { base64ToBytes, decodeQoi } from './qoi';
+
+/** Thumbnail formats shown as data URLs; anything else (and QOI, drawn on a canvas) is not. */
+const THUMBNAIL_TYPES: Readonly<Record<string, string>> = { png: 'image/png', jpeg: 'image/jpeg' };
+
+/**
+ * The data URL of a PNG or JPEG thumbnail, or null. Format and data come from the controller:
+ * only an image type we name and base64 data can make the URL (`imageDataUrl`), so no
+ * `data:text/html`, SVG or text that breaks out of the URL.
+ */
+export function thumbnailSrc(format: string, data: string): string | null {
+  const type = Object.hasOwn(THUMBNAIL_TYPES, format) ? THUMBNAIL_TYPES[format] : undefined;
+  return type ? imageDataUrl(type, data) : null;
+}
 
 /** A job-file thumbnail: PNG and JPEG as data URLs, QOI decoded onto a canvas. */
 export function Thumbnail(props: { thumb: ThumbnailData | null | undefined; size?: number; alt?: string }) {
@@ -50,15 +64,9 @@ export function Thumbnail(props: { thumb: ThumbnailData | null | undefined; size
       <span style={box} />
     );
   }
-  const mime = t.format === 'jpeg' ? 'image/jpeg' : 'image/png';
-  return (
-    <img
-      src={`data:${mime};base64,${t.data}`}
-      alt={props.alt ?? 'thumbnail'}
-      style={box}
-      data-format={t.format}
-    />
-  );
+  const src = thumbnailSrc(t.format, t.data);
+  if (!src) return <span style={{ ...box, display: 'inline-block' }} aria-hidden="true" data-format="none" />;
+  return <img src={src} alt={props.alt ?? 'thumbnail'} style={box} data-format={t.format} />;
 }
 
 /** Emergency stop: one tap, no confirmation, on every page of the machine. */

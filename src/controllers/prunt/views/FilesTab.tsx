@@ -3,8 +3,50 @@ import { useStore } from 'zustand';
 import type { TabProps } from '../../../fleet/contract';
 import { CommandButton } from '../../../fleet/react';
 import { Button, DataTable, formatBytes, Notice, Panel, ProgressBar } from '../../../ui';
+import { safeExternalHref } from '../../../ui/safe-url';
 import type { PruntSession } from '../session';
 import './prunt.css';
+
+/**
+ * The controller's "update available" URL: a link only when it is an external https page
+ * (opened without opener or referrer); anything else (a console path, `%2e%2e/…`, `http:`,
+ * `javascript:`…) is shown as plain text, never followed.
+ */
+export function UpdateLink({ url }: { url: string }) {
+  const href = safeExternalHref(url);
+  if (!url.trim()) return <span className="ui-muted">no link given</span>;
+  if (!href)
+    return (
+      <span className="mono" data-testid="prunt-update-url">
+        {url}
+      </span>
+    );
+  return (
+    <a href={href} target="_blank" rel="noopener noreferrer" data-testid="prunt-update-url">
+      {href}
+    </a>
+  );
+}
+
+/** Download link of an uploaded file; none when the name would lead out of `/uploads/`. */
+function DownloadLink({ session, name }: { session: PruntSession; name: string }) {
+  const url = session.client.fileUrl(name);
+  if (!url)
+    return (
+      <span
+        className="ui-muted"
+        title="This file name cannot be downloaded safely"
+        data-testid={`download-${name}`}
+      >
+        No download
+      </span>
+    );
+  return (
+    <a className="ui-button" href={url} download={name} data-testid={`download-${name}`}>
+      Download
+    </a>
+  );
+}
 
 /** Files in `/uploads/`: list, upload with progress, download, run; and the update check. */
 export function FilesTab({ session }: TabProps<PruntSession>) {
@@ -37,9 +79,7 @@ export function FilesTab({ session }: TabProps<PruntSession>) {
               align: 'right',
               render: (f) => (
                 <span className="ui-row" style={{ justifyContent: 'flex-end' }}>
-                  <a className="ui-button" href={session.client.fileUrl(f)} download={f}>
-                    Download
-                  </a>
+                  <DownloadLink session={session} name={f} />
                   <CommandButton
                     runner={run}
                     snapshot={session.ctx.snapshot}
@@ -106,9 +146,7 @@ export function FilesTab({ session }: TabProps<PruntSession>) {
           </Notice>
         ) : update.result?.Available ? (
           <Notice tone="info" title="An update is available">
-            <a href={update.result.URL} target="_blank" rel="noopener noreferrer">
-              {update.result.URL || 'no link given'}
-            </a>
+            <UpdateLink url={update.result.URL} />
           </Notice>
         ) : (
           <p>No update available{update.result?.URL ? ` (${update.result.URL})` : ''}.</p>

@@ -4,6 +4,7 @@ import { Badge, formatDuration, formatNumber, KeyValues, Notice, Panel } from '.
 import type { TabProps } from '../../../fleet/contract';
 import type { PruntSession } from '../session';
 import { RateSelect, StartupBanner, useWatchLive } from './common';
+import { UpdateLink } from './FilesTab';
 import { LiveChart } from './LiveChart';
 import './prunt.css';
 
@@ -96,9 +97,7 @@ export function OverviewTab({ session }: TabProps<PruntSession>) {
       )}
       {update?.result?.Available && (
         <Notice tone="info" title="A software update is available">
-          <a href={update.result.URL} target="_blank" rel="noopener noreferrer">
-            {update.result.URL}
-          </a>
+          <UpdateLink url={update.result.URL} />
         </Notice>
       )}
       <Panel title="Live chart" className="pr-wide">

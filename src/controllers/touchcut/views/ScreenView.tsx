@@ -2,6 +2,7 @@ import { useEffect, useRef, useState } from 'react';
 import type { TabProps } from '../../../fleet/contract';
 import { useNow, useSnapshot, useStoreSelect } from '../../../fleet/react';
 import { Button, EmptyState, Notice, formatAge, formatTime } from '../../../ui';
+import { safeImageBlob } from '../../../ui/safe-url';
 import { THUMBNAIL_INTERVAL_MS } from '../feeds';
 import type { TouchcutSession } from '../session';
 import { READ_ONLY, useObjectUrl } from './common';
@@ -9,7 +10,9 @@ import { READ_ONLY, useObjectUrl } from './common';
 /**
  * Live view of the TouchCut screen (`rest/v1/screenshot`): at most one request per second for the
  * machine, only while this view is on screen and the page visible (ScreenshotFeed), with its age,
- * pause and full screen.
+ * pause and full screen. Only a blob of a raster image type becomes a `blob:` URL (the client
+ * checks the PNG signature; this is the last gate): an HTML or SVG "screenshot" opened in a new
+ * tab would run in the console's origin.
  */
 export function ScreenView({ session }: TabProps<TouchcutSession>) {
   const [paused, setPaused] = useState(false);
@@ -25,7 +28,7 @@ export function ScreenView({ session }: TabProps<TouchcutSession>) {
     return session.screenshot.subscribe();
   }, [session, paused]);
   const shown = paused && frozen ? frozen : { blob, at };
-  const url = useObjectUrl(shown.blob);
+  const url = useObjectUrl(safeImageBlob(shown.blob));
   const now = useNow(1000);
   const box = useRef<HTMLDivElement>(null);
   const simulated = useSnapshot(session.ctx, () => session.machine.simulated);
@@ -101,7 +104,7 @@ export function ScreenThumbnail({ session }: TabProps<TouchcutSession>) {
   const { blob, at } = useStoreSelect(session.screenshot.store, (s) => ({ blob: s.blob, at: s.at }));
   const link = useSnapshot(session.ctx, (s) => s.link);
   useEffect(() => session.screenshot.subscribe(THUMBNAIL_INTERVAL_MS), [session]);
-  const url = useObjectUrl(blob);
+  const url = useObjectUrl(safeImageBlob(blob));
   const now = useNow(5000);
   if (!url || link !== 'online') return null;
   return (
