@@ -44,5 +44,9 @@ export function defaultDecision(req: AccessRequest): AccessDecision {
     : supervisor(`${req.method} ${req.path} (not declared by the family: supervisor only)`);
 }
 
-/** Whether the gateway must buffer the request body to classify it. */
-export type BodyNeeded = (method: string, path: string) => boolean;
+/**
+ * Whether the gateway must buffer the request body to classify it. A role says the least role any
+ * such body can need (the gateway refuses anyone below it before reading the body); `true` means
+ * operator: a body-classified request is a command.
+ */
+export type BodyNeeded = (method: string, path: string) => boolean | Role;

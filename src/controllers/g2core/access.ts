@@ -16,16 +16,191 @@ import {
  *              upload job files; alarm clear (`GET /machine/clear`, a GET that is a command);
  *              jog and home (POST /operation whose lines are all jog or G28.2 lines, see
  *              `isJogOrHomeLine`: operators stand at the machine); feed/spindle overrides
- *              (`PUT /machine/mfo|mto|sso`)
+ *              (`PUT /machine/mfo|mto|sso` with a number)
  *  supervisor  settings (`PUT /machine/…`), the G-code console (any other POST /operation),
  *              triggering alarm/shutdown/panic (`GET /machine/alarm|shutd|panic`), deleting jobs,
- *              anything undeclared that is not a GET.
+ *              anything undeclared that is not a GET, WebSocket upgrades (g2core has none).
  *
- * POST /operation is classified by its body: `accessNeedsBody` asks the gateway to read it.
+ * Keys are classified in their canonical form (`canonicalKey`): `/machine/sys/clear`,
+ * `/machine/sys.clear`, `/machine/SYS/CLEAR` and `/machine/clear` are the same command. The
+ * firmware reads `{"clear":null}` as a command wherever it appears, so a `filter` that names a
+ * command key is that command, and a GET with a body (the design reads filters, and in one
+ * example a value, from a GET body) is not a read.
+ *
+ * POST /operation, PUT of an override and every GET are classified with their body:
+ * `g2coreAccessNeedsBody` asks the gateway to read it.
  */
 
 /** Override keys an operator may set while a job runs (sys group). */
 export const OVERRIDE_KEYS = ['mfo', 'mto', 'sso'] as const;
+
+/** Keys whose GET is a command in the firmware (`config_app.cpp`: cm_clr, cm_alrm, cm_shutd, cm_pnic). */
+const COMMAND_KEYS: Record<string, 'operator' | 'supervisor'> = {
+  clear: 'operator',
+  clr: 'operator',
+  alarm: 'supervisor',
+  shutd: 'supervisor',
+  panic: 'supervisor',
+};
+
+/** Keys that carry G-code (`{"gc":"G0 X1"}` runs it): never in a filter. */
+const GCODE_KEYS = new Set(['gc', 'gc2']);
+
+/** The parts of a key: whitespace and control characters dropped, lower case, split at `/` and `.`. */
+function keyParts(raw: string): string[] {
+  const parts = raw
+    // eslint-disable-next-line no-control-regex
+    .replace(/[\s\u0000-\u001f\u007f-\u009f]/g, '')
+    .toLowerCase()
+    .split(/[/.]/)
+    .filter((p) => p !== '');
+  while (parts.length > 1 && parts[0] === 'sys') parts.shift();
+  return parts;
+}
+
+/**
+ * The one form of a key: `sys/MFO`, `sys.mfo`, ` mfo `, `sysmfo` → `mfo`; `x/vm`, `x.vm` → `xvm`.
+ * The `sys` group prefix is dropped (system keys are freestanding in the firmware).
+ */
+export function canonicalKey(raw: string): string {
+  let flat = keyParts(raw).join('');
+  while (flat.startsWith('sys') && flat.length > 3) flat = flat.slice(3);
+  return flat;
+}
+
+/** The command a key names, looking at its canonical form and at each of its parts. */
+function commandOf(raw: string): 'operator' | 'supervisor' | null {
+  const names = [canonicalKey(raw), ...keyParts(raw)];
+  let found: 'operator' | 'supervisor' | null = null;
+  for (const n of names) {
+    const c = COMMAND_KEYS[n];
+    if (c === 'supervisor') return c;
+    if (c) found = c;
+  }
+  return found;
+}
+
+function commandDecision(role: 'operator' | 'supervisor', what: string): AccessDecision {
+  return role === 'operator' ? operator('clear alarm') : supervisor(`trigger ${what}`);
+}
+
+/** Percent-decodes until nothing changes (a server may decode more than once). Null if invalid. */
+function decodeAll(s: string): string | null {
+  let cur = s;
+  for (let k = 0; k < 4; k++) {
+    let next: string;
+    try {
+      next = decodeURIComponent(cur);
+    } catch {
+      return null;
+    }
+    if (next === cur) return cur;
+    cur = next;
+  }
+  return cur;
+}
+
+interface Target {
+  /** Lower-cased route segments, decoded once, empty ones dropped (`/Machine//x/` → machine, x). */
+  segs: string[];
+  /** `/machine/{key}`: the key as decoded once (null when not valid percent-encoding). */
+  key: string | null;
+  /** The key segments, still encoded. */
+  rawKey: string;
+}
+
+function target(path: string): Target {
+  const raw = (path.split('?')[0] ?? '').split('/').filter((s) => s !== '');
+  const segs: string[] = [];
+  for (const s of raw) {
+    try {
+      segs.push(decodeURIComponent(s).toLowerCase());
+    } catch {
+      segs.push(s.toLowerCase());
+    }
+  }
+  const rawKey = raw.slice(1).join('/');
+  let key: string | null;
+  try {
+    key = decodeURIComponent(rawKey);
+  } catch {
+    key = null;
+  }
+  return { segs, key, rawKey };
+}
+
+/** The strongest command a filter names (keys at any depth), or why it cannot be read. */
+function filterCommand(text: string): AccessDecision | null {
+  let spec: unknown;
+  try {
+    spec = JSON.parse(text);
+  } catch {
+    return supervisor("read with a filter that is not JSON (the firmware's relaxed JSON may name a command)");
+  }
+  let found: AccessDecision | null = null;
+  const walk = (v: unknown): AccessDecision | null => {
+    if (Array.isArray(v)) {
+      for (const x of v) {
+        const d = walk(x);
+        if (d?.role === 'supervisor') return d;
+      }
+      return null;
+    }
+    if (typeof v !== 'object' || v === null) return null;
+    for (const [k, inner] of Object.entries(v)) {
+      if (GCODE_KEYS.has(canonicalKey(k))) return supervisor('read with a filter that carries G-code');
+      const c = commandOf(k);
+      if (c === 'supervisor') return commandDecision(c, canonicalKey(k));
+      if (c) found = commandDecision(c, canonicalKey(k));
+      const d = walk(inner);
+      if (d?.role === 'supervisor') return d;
+    }
+    return null;
+  };
+  return walk(spec) ?? found;
+}
+
+function getDecision(t: Target, query: URLSearchParams, body: string | undefined): AccessDecision {
+  if (body !== undefined && body.trim() !== '')
+    return supervisor('a GET with a body (the design reads filters and values from it)');
+  let strongest: AccessDecision | null = null;
+  for (const [k, v] of query) {
+    if (k.trim().toLowerCase() !== 'filter') continue;
+    const d = filterCommand(v);
+    if (d?.role === 'supervisor') return d;
+    strongest ??= d;
+  }
+  if (t.segs[0] === 'machine' && t.segs.length > 1) {
+    const key = decodeAll(t.rawKey);
+    if (key === null) return supervisor('read a key that is not valid percent-encoding');
+    const c = commandOf(key);
+    if (c) return commandDecision(c, canonicalKey(key));
+  }
+  return strongest ?? read();
+}
+
+const JSON_WS = '[ \\t\\r\\n]*';
+const JSON_NUMBER = '-?(?:0|[1-9]\\d*)(?:\\.\\d+)?(?:[eE][-+]?\\d+)?';
+const BARE_NUMBER = new RegExp(`^${JSON_WS}${JSON_NUMBER}${JSON_WS}$`);
+const KEYED_NUMBER = new RegExp(
+  `^${JSON_WS}\\{${JSON_WS}"([A-Za-z./]+)"${JSON_WS}:${JSON_WS}${JSON_NUMBER}${JSON_WS}\\}${JSON_WS}$`,
+);
+
+/** The override a `PUT /machine/{key}` addresses: only from a key that needs no second decoding. */
+function overrideKey(t: Target): string | null {
+  if (t.segs[0] !== 'machine' || t.segs.length < 2 || t.key === null || t.key.includes('%')) return null;
+  const k = canonicalKey(t.key);
+  return (OVERRIDE_KEYS as readonly string[]).includes(k) ? k : null;
+}
+
+/** An override is a number, bare or as `{"<the same key>": number}`; anything else is a setting. */
+function overrideDecision(key: string, body: string | undefined): AccessDecision {
+  const b = body ?? '';
+  const keyed = KEYED_NUMBER.exec(b);
+  if (BARE_NUMBER.test(b) || (keyed && canonicalKey(keyed[1] ?? '') === key))
+    return operator('change feed/spindle override');
+  return supervisor('change a setting (an override body other than a number)');
+}
 
 const AXIS_WORD = '[XYZABC][-+]?(?:\\d+\\.?\\d*|\\.\\d+)';
 const NUM = '(?:\\d+\\.?\\d*|\\.\\d+)';
@@ -39,6 +214,37 @@ export function isJogOrHomeLine(line: string): boolean {
   return JOG_LINE.test(l) || HOME_LINE.test(l) || RESTORE_LINE.test(l);
 }
 
+/**
+ * True when a JSON text repeats a key in one object (compared lower-cased and trimmed): a parser
+ * that keeps the first copy would read something else than `JSON.parse`, which keeps the last.
+ * The text must already be valid JSON.
+ */
+function repeatsKeys(text: string): boolean {
+  const stack: Array<Set<string> | null> = [];
+  let prev = '';
+  for (let i = 0; i < text.length; i++) {
+    const c = text[i] ?? '';
+    if (c === '"') {
+      let j = i + 1;
+      while (j < text.length && text[j] !== '"') j += text[j] === '\\' ? 2 : 1;
+      const top = stack[stack.length - 1];
+      if (top && (prev === '{' || prev === ',')) {
+        const k = (JSON.parse(text.slice(i, j + 1)) as string).trim().toLowerCase();
+        if (top.has(k)) return true;
+        top.add(k);
+      }
+      i = j;
+      prev = '"';
+      continue;
+    }
+    if (c === '{') stack.push(new Set());
+    else if (c === '[') stack.push(null);
+    else if (c === '}' || c === ']') stack.pop();
+    if (!/\s/.test(c)) prev = c;
+  }
+  return false;
+}
+
 function operationDecision(body: string | undefined): AccessDecision {
   const console = supervisor('run G-code (console)');
   if (!body) return console;
@@ -48,7 +254,8 @@ function operationDecision(body: string | undefined): AccessDecision {
   } catch {
     return console;
   }
-  if (typeof parsed !== 'object' || parsed === null) return console;
+  if (typeof parsed !== 'object' || parsed === null || Array.isArray(parsed)) return console;
+  if (repeatsKeys(body) || !Object.keys(parsed).every((k) => k === 'optype' || k === 'value')) return console;
   const { optype, value } = parsed as { optype?: unknown; value?: unknown };
   if (optype === 'sendfile') return operator('run a job file');
   if (optype !== 'run') return console;
@@ -63,29 +270,36 @@ function operationDecision(body: string | undefined): AccessDecision {
 }
 
 export const g2coreAccess: AccessPolicy = (req) => {
-  const path = req.path.replace(/\/+$/, '') || '/';
   const m = req.method.toUpperCase();
-  if (req.websocket) return defaultDecision(req);
+  if (req.websocket) return supervisor('open a WebSocket (g2core has none: the server would see a GET)');
+  const t = target(req.path);
+  const [top, id] = t.segs;
+  const n = t.segs.length;
 
-  if (m === 'GET' || m === 'HEAD') {
-    const key = /^\/machine\/([^/]+)$/.exec(path)?.[1]?.toLowerCase();
-    if (key === 'clear' || key === 'clr') return operator('clear alarm');
-    if (key === 'alarm' || key === 'shutd' || key === 'panic') return supervisor(`trigger ${key}`);
-    return read();
-  }
+  if (m === 'GET' || m === 'HEAD') return getDecision(t, req.query, req.body);
 
-  if (m === 'PUT' && path.startsWith('/machine/')) {
-    const rest = path.slice('/machine/'.length).replace(/^sys[/.]/, '');
-    if ((OVERRIDE_KEYS as readonly string[]).includes(rest)) return operator('change feed/spindle override');
-    return supervisor('change a setting');
+  if (m === 'PUT' && top === 'machine' && n >= 2) {
+    const k = overrideKey(t);
+    return k ? overrideDecision(k, req.body) : supervisor('change a setting');
   }
-  if (m === 'POST' && path === '/operation') return operationDecision(req.body);
-  if (m === 'PUT' && /^\/operation\/[^/]+$/.test(path)) return operator('pause, resume or kill an operation');
-  if (m === 'POST' && path === '/job') return operator('queue a job (upload)');
-  if (m === 'PUT' && /^\/job\/[^/]+$/.test(path)) return operator('start, pause, kill or reorder a job');
-  if (m === 'DELETE' && /^\/job\/[^/]+$/.test(path)) return supervisor('delete a job');
+  if (m === 'POST' && top === 'operation' && n === 1) return operationDecision(req.body);
+  if (m === 'PUT' && top === 'operation' && n === 2 && id)
+    return operator('pause, resume or kill an operation');
+  if (m === 'POST' && top === 'job' && n === 1) return operator('queue a job (upload)');
+  if (m === 'PUT' && top === 'job' && n === 2 && id) return operator('start, pause, kill or reorder a job');
+  if (m === 'DELETE' && top === 'job' && n === 2 && id) return supervisor('delete a job');
   return defaultDecision(req);
 };
 
-export const g2coreAccessNeedsBody: BodyNeeded = (method, path) =>
-  method.toUpperCase() === 'POST' && path.replace(/\/+$/, '') === '/operation';
+/**
+ * The gateway reads the body of: POST /operation (jog/home or console), a PUT of an override (a
+ * number, or something more), and every GET ('viewer': a GET with a body is not a read).
+ */
+export const g2coreAccessNeedsBody: BodyNeeded = (method, path) => {
+  const m = method.toUpperCase();
+  if (m === 'GET' || m === 'HEAD') return 'viewer';
+  const t = target(path);
+  if (m === 'POST') return t.segs.length === 1 && t.segs[0] === 'operation';
+  if (m === 'PUT') return overrideKey(t) !== null;
+  return false;
+};

@@ -1,7 +1,7 @@
 import {
-  defaultDecision,
   operator,
   read,
+  supervisor,
   type AccessDecision,
   type AccessPolicy,
   type AccessRequest,
@@ -11,52 +11,69 @@ import {
  * Who may send which TouchCut request (enforced by the gateway, mirrored by the UI).
  *
  * The TouchCut REST API v1 is read-only apart from its two auth requests, so:
- * - every documented GET is a viewer read (status, stats, monitor, programs, unloader, screenshot,
- *   machine-info);
+ * - every documented GET (and HEAD) is a viewer read: status, stats, monitor, programs, unloader,
+ *   screenshot, machine-info;
  * - `POST auth` (a TouchCut user login) is allowed to viewers and not a command: it changes nothing
  *   on the machine, and TouchCut's own user privileges then govern what the token may read;
  * - `POST auth/change-password` changes a TouchCut account: operator and audited (the TouchCut user
  *   changes their own password, knowing the old one);
- * - anything else (undocumented methods/paths) falls to the core default: GET is a read, any other
- *   method supervisor-only;
- * - no GET is a command: none of them changes the machine.
+ * - anything else needs a supervisor, GETs included: TouchCut's web server has more than the
+ *   documented API (its web interface can move the part unloader), and a GET there may act;
+ * - WebSocket upgrades need a supervisor: the API has none, and TouchCut would see a GET.
+ *
+ * Paths are compared in one form (`touchcutResource`: case-insensitive, trailing and repeated
+ * slashes ignored); the gateway's `injectSecrets` (family.ts) uses the same form (`takesApiKey`)
+ * to add the API key to the documented reads only.
  */
 
-function normalize(path: string): string {
-  const p = path.split('?')[0] ?? '';
-  return ('/' + p.replace(/^\/+/, '')).replace(/\/+$/, '').toLowerCase();
+/** Documented reads that take the API key (machine-info needs no login, auth takes no key). */
+export const KEYED_READS = ['status', 'stats', 'monitor', 'programs', 'unloader', 'screenshot'] as const;
+
+const READ_LABELS: Record<string, string> = {
+  'machine-info': 'read machine information',
+  status: 'read status',
+  stats: 'read production statistics',
+  monitor: 'monitor axes and I/O',
+  programs: 'read programs',
+  unloader: 'read the part unloader',
+  screenshot: 'view the TouchCut screen',
+};
+
+/**
+ * The resource under `/rest/v1/` a path names, lower-cased, empty and trailing segments ignored
+ * (`/REST//v1/Status/` → "status", `/rest/v1/auth/change-password` → "auth/change-password").
+ * Null for a path outside `/rest/v1/`. Percent-encoded characters stay encoded, so `status%2F..`
+ * is not "status".
+ */
+export function touchcutResource(path: string): string | null {
+  const segs = (path.split('?')[0] ?? '')
+    .split('/')
+    .filter((s) => s !== '')
+    .map((s) => s.toLowerCase());
+  if (segs.length < 3 || segs[0] !== 'rest' || segs[1] !== 'v1') return null;
+  return segs.slice(2).join('/');
+}
+
+/** Whether the gateway adds the API key: GETs of the documented key-taking reads, nothing else. */
+export function takesApiKey(method: string, path: string): boolean {
+  if (method.toUpperCase() !== 'GET') return false;
+  const r = touchcutResource(path);
+  return r !== null && (KEYED_READS as readonly string[]).includes(r);
 }
 
 export const touchcutAccess: AccessPolicy = (req: AccessRequest): AccessDecision => {
-  const path = normalize(req.path);
-  const m = /^\/rest\/v1\/(.+)$/.exec(path);
-  if (!m || req.websocket) return defaultDecision(req);
-  const resource = m[1];
-  if (req.method === 'GET' || req.method === 'HEAD') {
-    switch (resource) {
-      case 'machine-info':
-        return read('read machine information');
-      case 'status':
-        return read('read status');
-      case 'stats':
-        return read('read production statistics');
-      case 'monitor':
-        return read('monitor axes and I/O');
-      case 'programs':
-        return read('read programs');
-      case 'unloader':
-        return read('read the part unloader');
-      case 'screenshot':
-        return read('view the TouchCut screen');
-      default:
-        return defaultDecision(req);
-    }
+  const method = req.method.toUpperCase();
+  if (req.websocket) return supervisor('open a WebSocket (TouchCut has none: it would see a GET)');
+  const resource = touchcutResource(req.path);
+  if (resource !== null && (method === 'GET' || method === 'HEAD')) {
+    const label = READ_LABELS[resource];
+    if (label) return read(label);
   }
-  if (req.method === 'POST' && resource === 'auth') {
+  if (method === 'POST' && resource === 'auth') {
     return { role: 'viewer', command: false, label: 'log in as a TouchCut user' };
   }
-  if (req.method === 'POST' && resource === 'auth/change-password') {
+  if (method === 'POST' && resource === 'auth/change-password') {
     return operator('change the TouchCut user password');
   }
-  return defaultDecision(req);
+  return supervisor(`${method} ${req.path} (not a documented TouchCut request: supervisor only)`);
 };

@@ -1,5 +1,5 @@
 import type { FamilyDescriptor, GatewayHints } from '../../fleet/contract';
-import { touchcutAccess } from './access';
+import { takesApiKey, touchcutAccess } from './access';
 import { createTouchcutSimulator } from './sim/simulator';
 
 /**
@@ -13,11 +13,14 @@ import { createTouchcutSimulator } from './sim/simulator';
  */
 export const touchcutGateway: GatewayHints = {
   /**
-   * Adds `X-TouchCut-API-Key` from the machine's apiKey when one is configured and the browser did
-   * not send `Authorization: Bearer` (a TouchCut user login: the manual says the JWT takes
-   * precedence, and a user's own privileges are what they logged in for). The key goes in a header
-   * only, never the query (queries end up in logs and error echoes). A key the browser tried to
-   * send itself is dropped: the browser never holds one.
+   * Adds `X-TouchCut-API-Key` from the machine's apiKey to GET requests of the documented reads
+   * that take it (status, stats, monitor, programs, unloader, screenshot: `takesApiKey`, the same
+   * path form the access rule uses), and to nothing else: no other method, no undocumented path, not
+   * machine-info or auth (they take no key). Not when the browser sent `Authorization: Bearer` (a
+   * TouchCut user login: the manual says the JWT takes precedence, and a user's own privileges are
+   * what they logged in for). The key goes in a header only, never the query (queries end up in
+   * logs and error echoes). A key the browser tried to send itself is always dropped: the browser
+   * never holds one.
    */
   injectSecrets(req, secrets) {
     for (const k of Object.keys(req.headers))
@@ -25,9 +28,8 @@ export const touchcutGateway: GatewayHints = {
     const bearer = Object.entries(req.headers).some(
       ([k, v]) => k.toLowerCase() === 'authorization' && /^bearer\s+\S/i.test(v),
     );
-    // Requests that take no key (a user login, machine-info) never carry it: least exposure.
-    const keyless = /^\/?rest\/v1\/(auth(\/.*)?|machine-info)\/?$/i.test(req.path);
-    if (secrets.apiKey && !bearer && !keyless) req.headers['X-TouchCut-API-Key'] = secrets.apiKey;
+    if (secrets.apiKey && !bearer && takesApiKey(req.method, req.path))
+      req.headers['X-TouchCut-API-Key'] = secrets.apiKey;
   },
 };
 

@@ -3,6 +3,7 @@ import type { TabProps } from '../../../fleet/contract';
 import { LinkError } from '../../../fleet/errors';
 import { CommandButton, useCan, useSnapshot, useStoreSelect } from '../../../fleet/react';
 import { Button, Dialog, Field, Notice, Panel, ProgressBar, formatBytes, formatDateTime } from '../../../ui';
+import { openToViewers } from '../access';
 import { joinPath } from '../client';
 import type { DuetSession } from '../session';
 import type { DirEntry } from '../wire';
@@ -177,7 +178,7 @@ function FileList(props: {
   onOpen: (dir: string) => void;
   onRename: (e: DirEntry) => void;
   onDownload: (path: string, name: string) => void;
-  /** System files may hold passwords: only supervisors download them (access.ts). */
+  /** Files other than job files and the height map may hold passwords: supervisors only (access.ts). */
   canReadSystem: boolean;
 }) {
   const { session, dir } = props;
@@ -246,7 +247,7 @@ function FileList(props: {
                   Run
                 </CommandButton>
               )}
-              {!isDir && (props.root !== 'system' || props.canReadSystem || /\.csv$/i.test(e.name)) && (
+              {!isDir && (props.canReadSystem || openToViewers(path)) && (
                 <Button onClick={() => props.onDownload(path, e.name)}>Download</Button>
               )}
               <RoleGate role="supervisor">
