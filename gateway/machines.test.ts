@@ -1,6 +1,13 @@
 import path from 'node:path';
 import { afterEach, describe, expect, it } from 'vitest';
-import { DEMO_FLEET, loadMachines, MachinesFileError, secretForms, redact } from './machines';
+import {
+  DEMO_FLEET,
+  loadMachines,
+  MachinesFileError,
+  normalizeFingerprint,
+  secretForms,
+  redact,
+} from './machines';
 import { tempDir, writeJson } from './test-util';
 
 const cleanups: Array<() => void> = [];
@@ -146,6 +153,71 @@ describe('machines file', () => {
     expect(() => loadMachines({ machinesFile: f, env: {}, cwd: d })).toThrow(
       /broken\.json[\s\S]*field "machines": missing/,
     );
+  });
+});
+
+describe('tlsFingerprint', () => {
+  const FP =
+    'A1:B2:C3:D4:E5:F6:07:18:29:3A:4B:5C:6D:7E:8F:90:A1:B2:C3:D4:E5:F6:07:18:29:3A:4B:5C:6D:7E:8F:90';
+  const cutter = { id: 'plasma-1', name: 'Plasma table', kind: 'touchcut', url: 'https://kineticcutter' };
+
+  function load(machines: unknown[]) {
+    const d = dir();
+    const file = writeJson(path.join(d, 'm.json'), { machines });
+    return loadMachines({ machinesFile: file, env: {}, cwd: d }).machines;
+  }
+
+  it('is stored as uppercase colon pairs, whatever form the file uses', () => {
+    const ms = load([
+      { ...cutter, tlsFingerprint: FP },
+      { ...cutter, id: 'p2', tlsFingerprint: FP.toLowerCase() },
+      { ...cutter, id: 'p3', tlsFingerprint: FP.replace(/:/g, '') },
+      { ...cutter, id: 'p4', tlsFingerprint: ` ${FP.replace(/:/g, '').toLowerCase()} ` },
+      { ...cutter, id: 'p5' },
+      // Only the socket is TLS: the fingerprint applies to it.
+      { ...good, id: 'l2', wsUrl: 'wss://10.0.0.50:8081', tlsFingerprint: FP },
+    ]);
+    expect(ms.map((m) => m.tlsFingerprint)).toEqual([FP, FP, FP, FP, undefined, FP]);
+    expect('tlsFingerprint' in ms[4]!).toBe(false);
+    expect(normalizeFingerprint(FP.toLowerCase())).toBe(FP);
+  });
+
+  it('names the file, the entry and the field when it is not a SHA-256 fingerprint', () => {
+    for (const bad of [
+      FP.slice(0, -3), // 31 pairs
+      FP.replace(/:/g, '').slice(1), // 63 digits
+      FP.replace('A1', 'G1'),
+      FP.replace(/:/g, ' '),
+      'sha256 Fingerprint=' + FP,
+      '',
+    ]) {
+      const { file, message } = problemsOf([{ ...cutter, tlsFingerprint: bad }]);
+      expect(message, bad).toContain(file);
+      expect(message, bad).toMatch(
+        /machines\[0\] \(id "plasma-1"\): field "tlsFingerprint": must be the SHA-256 fingerprint of the controller's certificate, 64 hex digits with or without colons/,
+      );
+    }
+    expect(problemsOf([{ ...cutter, tlsFingerprint: 42 }]).message).toMatch(
+      /machines\[0\] \(id "plasma-1"\): field "tlsFingerprint": must be a string/,
+    );
+  });
+
+  it('is refused on a machine without an https:// or wss:// address', () => {
+    for (const m of [
+      { ...good, tlsFingerprint: FP },
+      { ...good, wsUrl: 'ws://10.0.0.50:8081', tlsFingerprint: FP },
+      { id: 'sim', name: 'Sim', kind: 'touchcut', simulated: true, tlsFingerprint: FP },
+    ]) {
+      expect(problemsOf([m]).message).toMatch(
+        new RegExp(
+          `machines\\[0\\] \\(id "${m.id}"\\): field "tlsFingerprint": only used for https:// and wss:// addresses, and this machine has none`,
+        ),
+      );
+    }
+    // A url that is wrong anyway gets one message, not a second one about TLS.
+    const { message } = problemsOf([{ ...good, url: 'ftp://x', tlsFingerprint: FP }]);
+    expect(message).toMatch(/field "url"/);
+    expect(message).not.toMatch(/tlsFingerprint/);
   });
 });
 

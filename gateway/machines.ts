@@ -3,6 +3,7 @@ import path from 'node:path';
 import { z } from 'zod';
 import type { GatewaySecrets } from '../src/fleet/contract';
 import { MACHINE_ID, MACHINE_KINDS, type MachineInfo, type MachineKind } from '../src/fleet/types';
+import { patternsOfForms, redactText, secretTextForms } from './redact';
 
 /**
  * The machines file (DESIGN.md, "The machines file"): `SHOPDECK_MACHINES`, else
@@ -21,6 +22,13 @@ export interface MachineEntry {
   wsUrl: URL | null;
   /** Resolved secret values (never sent to the browser). */
   secrets: GatewaySecrets;
+  /**
+   * SHA-256 fingerprint of the controller's TLS certificate (DER), normalised as Node's
+   * `cert.fingerprint256` ("AB:CD:…", uppercase). When set, the gateway talks to the
+   * controller's `https:`/`wss:` addresses only if they show this certificate; when absent it
+   * trusts the first certificate it sees and pins it (`tls-pin.ts`).
+   */
+  tlsFingerprint?: string;
 }
 
 export interface MachinesConfig {
@@ -60,7 +68,24 @@ const entrySchema = z.strictObject({
   apiKey: z.string({ error: 'must be a string' }).min(1, 'must not be empty').optional(),
   password: z.string({ error: 'must be a string' }).min(1, 'must not be empty').optional(),
   simulated: z.boolean({ error: 'must be true or false' }).optional(),
+  tlsFingerprint: z.string({ error: 'must be a string' }).optional(),
 });
+
+const FINGERPRINT_COLONS = /^[0-9a-f]{2}(:[0-9a-f]{2}){31}$/i;
+const FINGERPRINT_BARE = /^[0-9a-f]{64}$/i;
+
+/**
+ * A SHA-256 certificate fingerprint in the form Node's `cert.fingerprint256` has ("AB:CD:…",
+ * uppercase, 32 colon-separated pairs). Accepts 64 hex digits with or without colons, any
+ * case, surrounding spaces ignored (what `openssl x509 -noout -fingerprint -sha256` prints
+ * after the "="). Null when it is not one.
+ */
+export function normalizeFingerprint(value: string): string | null {
+  const v = value.trim();
+  if (!FINGERPRINT_COLONS.test(v) && !FINGERPRINT_BARE.test(v)) return null;
+  const hex = v.replace(/:/g, '').toUpperCase();
+  return hex.match(/../g)?.join(':') ?? null;
+}
 
 function describeEntry(index: number, raw: unknown): string {
   const id = raw && typeof raw === 'object' && 'id' in raw ? (raw as { id: unknown }).id : undefined;
@@ -144,6 +169,26 @@ export function parseMachines(file: string, data: unknown, env: NodeJS.ProcessEn
       if (typeof u === 'string') problems.push(`${where}: field "wsUrl": ${u}`);
       else wsUrl = u;
     }
+    let tlsFingerprint: string | undefined;
+    if (e.tlsFingerprint !== undefined) {
+      const fp = normalizeFingerprint(e.tlsFingerprint);
+      // Only TLS connections have a certificate: a fingerprint on a plain http:// machine
+      // would look like protection while the traffic (and the secrets) go in clear.
+      const tlsAddress = url?.protocol === 'https:' || wsUrl?.protocol === 'wss:';
+      // A url that is already reported as wrong says nothing about TLS.
+      const badAddress = (e.url !== undefined && !url) || (e.wsUrl !== undefined && !wsUrl);
+      if (fp === null) {
+        problems.push(
+          `${where}: field "tlsFingerprint": must be the SHA-256 fingerprint of the controller's certificate, 64 hex digits with or without colons ("AB:CD:…")`,
+        );
+      } else if (!tlsAddress && !badAddress) {
+        problems.push(
+          `${where}: field "tlsFingerprint": only used for https:// and wss:// addresses, and this machine has none (use an https:// url, or remove the field)`,
+        );
+      } else {
+        tlsFingerprint = fp;
+      }
+    }
     const secrets: GatewaySecrets = {};
     for (const field of ['apiKey', 'password'] as const) {
       const v = resolveSecret(e[field], env);
@@ -152,7 +197,16 @@ export function parseMachines(file: string, data: unknown, env: NodeJS.ProcessEn
         problems.push(`${where}: field "${field}": environment variable ${v.missing} is not set`);
       else secrets[field] = v;
     }
-    out.push({ id: e.id, name: e.name, kind: e.kind, simulated, url, wsUrl, secrets });
+    out.push({
+      id: e.id,
+      name: e.name,
+      kind: e.kind,
+      simulated,
+      url,
+      wsUrl,
+      secrets,
+      ...(tlsFingerprint ? { tlsFingerprint } : {}),
+    });
   });
   if (problems.length) throw new MachinesFileError(file, problems);
   return out;
@@ -191,21 +245,15 @@ export function machineInfo(m: MachineEntry): MachineInfo {
   return { id: m.id, name: m.name, kind: m.kind, simulated: m.simulated };
 }
 
-/** Every secret value of a machine, in the forms it could be echoed back in. */
+/**
+ * Every secret value of a machine, in the text forms it could be echoed back in (longest first):
+ * the forms of `secretPatterns` (redact.ts) that are valid UTF-8. Secrets shorter than 4 are left out.
+ */
 export function secretForms(secrets: GatewaySecrets): string[] {
-  const out = new Set<string>();
-  for (const v of [secrets.apiKey, secrets.password]) {
-    if (!v || v.length < 4) continue;
-    out.add(v);
-    out.add(encodeURIComponent(v));
-    out.add(JSON.stringify(v).slice(1, -1));
-    out.add(Buffer.from(v).toString('base64'));
-  }
-  return [...out].filter((s) => s.length >= 4).sort((a, b) => b.length - a.length);
+  return secretTextForms(secrets);
 }
 
+/** Replaces each form in `text` by `[redacted]` (redact.ts `redactText`; keep and reuse `forms`). */
 export function redact(text: string, forms: readonly string[]): string {
-  let t = text;
-  for (const f of forms) if (t.includes(f)) t = t.split(f).join('[redacted]');
-  return t;
+  return redactText(text, patternsOfForms(forms));
 }
