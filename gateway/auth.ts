@@ -2,8 +2,8 @@ import { randomBytes } from 'node:crypto';
 import type { Role } from '../src/fleet/types';
 
 /**
- * Console sessions (the HttpOnly cookie) and the brute-force limiter. In memory: a restart of
- * the gateway logs everyone out, which is the safe direction.
+ * Console sessions (the HttpOnly cookie), the brute-force limiter and the addresses users log
+ * in from. In memory: a restart of the gateway logs everyone out, which is the safe direction.
  */
 
 export const SESSION_COOKIE = 'shopdeck_session';
@@ -28,7 +28,10 @@ export interface Elevation {
 export interface ConsoleSession {
   token: string;
   user: string;
-  /** Role at login: decides the idle timeout. */
+  /**
+   * The user's role as last seen: set at login, updated when the users file changes (`who()` in
+   * context.ts); decides the idle timeout.
+   */
   role: Role;
   createdAt: number;
   lastSeen: number;
@@ -85,75 +88,182 @@ export class SessionStore {
     return s;
   }
 
+  /** Every session, expired ones not yet pruned included. */
+  list(): ConsoleSession[] {
+    return [...this.sessions.values()];
+  }
+
   delete(token: string): void {
     this.sessions.delete(token);
   }
 
-  /** Forget sessions of a user (removed from the users file). */
-  dropUser(user: string): void {
-    for (const [k, s] of this.sessions) if (s.user === user) this.sessions.delete(k);
+  /** Forget sessions of a user (removed from the users file); how many there were. */
+  dropUser(user: string): number {
+    let n = 0;
+    for (const [k, s] of this.sessions)
+      if (s.user === user) {
+        this.sessions.delete(k);
+        n++;
+      }
+    return n;
   }
 }
 
 export interface RateLimitOptions {
   windowMs: number;
+  /** Failed logins per (user, address). */
   perUser: number;
+  /** Failed logins and PINs per address, whichever the user. */
   perAddress: number;
+  /** Wrong PINs per supervisor, from any address: then the PIN is locked (the password is not). */
+  perPin: number;
+  /**
+   * Backstop against guessing one password from many addresses: failed logins per user, counted
+   * and enforced only for addresses the user has not logged in from (`LoginHistory`), so that an
+   * attacker cannot lock the real user out of their own tablet. Much higher than `perUser`: it
+   * only has to cap a distributed guesser (5 per address) at some hundred guesses per window.
+   */
+  perUserTotal: number;
 }
 
-export const DEFAULT_RATE_LIMIT: RateLimitOptions = { windowMs: 15 * 60_000, perUser: 5, perAddress: 20 };
+export const DEFAULT_RATE_LIMIT: RateLimitOptions = {
+  windowMs: 15 * 60_000,
+  perUser: 5,
+  perAddress: 20,
+  perPin: 5,
+  perUserTotal: 100,
+};
+
+/** A counter the limiter keeps: `key` may have at most `limit` attempts in `windowMs`. */
+export interface LimitKey {
+  key: string;
+  limit: number;
+  /** Default: the limiter's `windowMs`. */
+  windowMs?: number;
+}
+
+export type Reservation =
+  | {
+      ok: true;
+      /** The attempt succeeded: give its slot back on every key (once). */
+      release(): void;
+    }
+  | { ok: false; retryAfterS: number; key: string };
 
 /**
- * Failed attempts per key in a sliding window. A key with too many failures is blocked until
- * its oldest failure leaves the window. Keys: `user:<name>`, `addr:<address>`.
+ * Attempts per key in a sliding window. An attempt is counted BEFORE it is evaluated
+ * (`reserve`, synchronous: concurrent requests cannot all pass the check while the slow hash of
+ * the first ones runs) and given back only when it succeeded (`release`). A key at its limit is
+ * blocked until its oldest attempt leaves the window.
  */
 export class FailureLimiter {
-  private failures = new Map<string, number[]>();
+  private hits = new Map<string, { windowMs: number; times: number[] }>();
 
   constructor(
-    private readonly opts: RateLimitOptions,
+    readonly opts: RateLimitOptions,
     private readonly now: () => number,
   ) {}
 
-  private recent(key: string): number[] {
+  private recent(k: LimitKey, t: number): number[] {
+    const windowMs = k.windowMs ?? this.opts.windowMs;
+    const entry = this.hits.get(k.key);
+    if (!entry) return [];
+    entry.times = entry.times.filter((x) => t - x < windowMs);
+    if (!entry.times.length) this.hits.delete(k.key);
+    return entry.times;
+  }
+
+  /** Seconds until `k` allows another attempt, 0 when it does. */
+  private waitFor(k: LimitKey, t: number): number {
+    const list = this.recent(k, t);
+    if (list.length < k.limit) return 0;
+    const oldest = list[list.length - k.limit] ?? t;
+    return Math.max(1, Math.ceil((oldest + (k.windowMs ?? this.opts.windowMs) - t) / 1000));
+  }
+
+  /** Counts one attempt on every key, or none when one of them is at its limit. */
+  reserve(keys: readonly LimitKey[]): Reservation {
     const t = this.now();
-    const list = (this.failures.get(key) ?? []).filter((x) => t - x < this.opts.windowMs);
-    if (list.length) this.failures.set(key, list);
-    else this.failures.delete(key);
-    return list;
-  }
-
-  private limitFor(key: string): number {
-    return key.startsWith('addr:') ? this.opts.perAddress : this.opts.perUser;
-  }
-
-  /** Seconds to wait before another attempt, 0 when allowed. */
-  retryAfter(keys: readonly string[]): number {
+    this.sweep(t);
     let wait = 0;
+    let blocked = '';
     for (const k of keys) {
-      const list = this.recent(k);
-      if (list.length >= this.limitFor(k)) {
-        const oldest = list[list.length - this.limitFor(k)] ?? list[0] ?? this.now();
-        wait = Math.max(wait, Math.ceil((oldest + this.opts.windowMs - this.now()) / 1000));
+      const w = this.waitFor(k, t);
+      if (w > wait) {
+        wait = w;
+        blocked = k.key;
       }
     }
-    return wait;
-  }
-
-  fail(keys: readonly string[]): void {
-    const t = this.now();
-    if (this.failures.size > 10_000) {
-      for (const [k, list] of this.failures)
-        if (!list.some((x) => t - x < this.opts.windowMs)) this.failures.delete(k);
-    }
+    if (wait > 0) return { ok: false, retryAfterS: wait, key: blocked };
     for (const k of keys) {
-      const list = this.recent(k);
-      list.push(t);
-      this.failures.set(k, list);
+      const entry = this.hits.get(k.key);
+      if (entry) entry.times.push(t);
+      else this.hits.set(k.key, { windowMs: k.windowMs ?? this.opts.windowMs, times: [t] });
     }
+    let released = false;
+    return {
+      ok: true,
+      release: () => {
+        if (released) return;
+        released = true;
+        for (const k of keys) {
+          const entry = this.hits.get(k.key);
+          const i = entry ? entry.times.lastIndexOf(t) : -1;
+          if (entry && i >= 0) entry.times.splice(i, 1);
+          if (entry && !entry.times.length) this.hits.delete(k.key);
+        }
+      },
+    };
   }
 
-  reset(key: string): void {
-    this.failures.delete(key);
+  /** Attempts counted on `k` in its window. */
+  count(k: LimitKey): number {
+    return this.recent(k, this.now()).length;
+  }
+
+  /** Forgets a key's attempts. */
+  clear(key: string): void {
+    this.hits.delete(key);
+  }
+
+  private sweep(t: number): void {
+    if (this.hits.size <= 10_000) return;
+    for (const [key, e] of this.hits) if (!e.times.some((x) => t - x < e.windowMs)) this.hits.delete(key);
+  }
+}
+
+/**
+ * Addresses each user logged in from successfully (the last 20, for 30 days): the per-user
+ * backstop of the limiter spares them, so that a guesser elsewhere cannot lock the user out of
+ * the tablet they use.
+ */
+export class LoginHistory {
+  private byUser = new Map<string, Map<string, number>>();
+
+  constructor(
+    private readonly now: () => number,
+    private readonly keepMs = 30 * 24 * 3600_000,
+    private readonly perUser = 20,
+  ) {}
+
+  remember(user: string, address: string): void {
+    const m = this.byUser.get(user) ?? new Map<string, number>();
+    m.delete(address);
+    m.set(address, this.now());
+    while (m.size > this.perUser) {
+      const first = m.keys().next();
+      if (first.done) break;
+      m.delete(first.value);
+    }
+    this.byUser.set(user, m);
+  }
+
+  knows(user: string, address: string): boolean {
+    const at = this.byUser.get(user)?.get(address);
+    return at !== undefined && this.now() - at < this.keepMs;
+  }
+
+  forget(user: string): void {
+    this.byUser.delete(user);
   }
 }

@@ -3,7 +3,7 @@ import path from 'node:path';
 import { afterEach, describe, expect, it } from 'vitest';
 import { main, UsageError } from '../scripts/user';
 import { AuditLog } from './audit';
-import { login, startGateway, tempDir } from './test-util';
+import { login, startGateway, tempDir, consoleFetch } from './test-util';
 import { readUsers } from './users';
 
 /** `npm run user`: the script writes the users file the gateway logs people in with. */
@@ -49,7 +49,7 @@ describe('npm run user', () => {
     await main(
       ['add', 'sam', '--role', 'supervisor', '--pin', '--password-stdin'],
       e,
-      input('sam-password-1', '4711'),
+      input('sam-password-1', '471147'),
     );
     const users = readUsers(path.join(t.dir, 'users.json'))!;
     expect(users.map((u) => [u.name, u.role, u.machines])).toEqual([
@@ -68,7 +68,7 @@ describe('npm run user', () => {
     ).rejects.toThrow(/at least 8/);
     await expect(
       main(['add', 'sue', '--role', 'viewer', '--pin', '--password-stdin'], e, input('sue-password-1', '12')),
-    ).rejects.toThrow(/4 to 12 digits/);
+    ).rejects.toThrow(/6 to 12 digits/);
     await expect(
       main(['add', 'ana', '--role', 'viewer', '--password-stdin'], e, input('ana-password-2')),
     ).rejects.toThrow(/exists/);
@@ -89,7 +89,7 @@ describe('npm run user', () => {
     });
     cleanups.push(gw.close);
     const cookie = await login(gw.url, 'ana', 'ana-password-1');
-    const s = await (await fetch(`${gw.url}/api/session`, { headers: { Cookie: cookie } })).json();
+    const s = await (await consoleFetch(`${gw.url}/api/session`, { headers: { Cookie: cookie } })).json();
     expect(s).toMatchObject({
       mode: 'secured',
       user: { name: 'ana', role: 'supervisor', machines: ['laser-1', 'p1'] },
@@ -97,6 +97,6 @@ describe('npm run user', () => {
     expect(await main(['list'], e)).toMatch(/ana\s+supervisor\s+laser-1,p1/);
     await main(['remove', 'ana'], e);
     // Removed: the session ends at once.
-    expect((await fetch(`${gw.url}/api/machines`, { headers: { Cookie: cookie } })).status).toBe(401);
+    expect((await consoleFetch(`${gw.url}/api/machines`, { headers: { Cookie: cookie } })).status).toBe(401);
   });
 });

@@ -1,5 +1,6 @@
 import { existsSync, mkdirSync, readFileSync, renameSync, statSync, writeFileSync } from 'node:fs';
 import path from 'node:path';
+import { randomBytes } from 'node:crypto';
 import bcrypt from 'bcryptjs';
 import { z } from 'zod';
 import { MACHINE_ID, ROLES, type Role } from '../src/fleet/types';
@@ -15,6 +16,13 @@ import { MACHINE_ID, ROLES, type Role } from '../src/fleet/types';
  */
 
 export const USER_NAME = /^[A-Za-z0-9._@-]{1,64}$/;
+
+/** A supervisor's PIN: 6 to 12 digits (`npm run user`; the gateway does not evaluate others). */
+export const PIN_RULE = /^\d{6,12}$/;
+export const PIN_RULE_TEXT = 'the PIN must be 6 to 12 digits';
+
+/** bcrypt cost of new hashes (`SHOPDECK_BCRYPT_COST` for `npm run user`). */
+export const DEFAULT_COST = 12;
 
 const userSchema = z.strictObject({
   name: z.string().regex(USER_NAME, 'must be 1 to 64 of A-Z, a-z, 0-9 and . _ @ -'),
@@ -98,8 +106,45 @@ export function writeUsers(file: string, users: readonly UserRecord[]): void {
   renameSync(tmp, file);
 }
 
-export function hashSecret(secret: string, cost = 12): Promise<string> {
+export function hashSecret(secret: string, cost = DEFAULT_COST): Promise<string> {
   return bcrypt.hash(secret, cost);
+}
+
+/** The cost parameter of a bcrypt hash (`$2b$12$…` → 12), or null. */
+export function bcryptCost(hash: string): number | null {
+  const m = /^\$2[aby]\$(\d\d)\$/.exec(hash);
+  return m ? Number(m[1]) : null;
+}
+
+/** The most common cost among `hashes` (the higher on a tie), or null when there is none. */
+function usualCost(hashes: ReadonlyArray<string | null>): number | null {
+  const counts = new Map<number, number>();
+  for (const h of hashes) {
+    const c = h ? bcryptCost(h) : null;
+    if (c !== null) counts.set(c, (counts.get(c) ?? 0) + 1);
+  }
+  let best: number | null = null;
+  for (const [c, n] of counts) {
+    const bestN = best === null ? 0 : (counts.get(best) ?? 0);
+    if (best === null || n > bestN || (n === bestN && c > best)) best = c;
+  }
+  return best;
+}
+
+const dummies = new Map<number, string>();
+/**
+ * A well-formed bcrypt hash of a random secret with the given cost: comparing against it costs
+ * exactly what comparing against a real hash of that cost does. Made cheaply at cost 4, then
+ * given the cost (the cost field only says how many rounds the comparison runs).
+ */
+function dummyWithCost(cost: number): string {
+  let d = dummies.get(cost);
+  if (!d) {
+    const base = bcrypt.hashSync(randomBytes(16).toString('hex'), 4);
+    d = base.replace(/^(\$2[aby]\$)\d\d\$/, `$1${String(cost).padStart(2, '0')}$`);
+    dummies.set(cost, d);
+  }
+  return d;
 }
 
 export function checkSecret(secret: string, hash: string): Promise<boolean> {
@@ -115,6 +160,7 @@ export class UserDirectory {
   private users: UserRecord[] | null;
   private stamp: string;
   private secured: boolean;
+  private gen = 0;
 
   constructor(readonly file: string) {
     this.users = readUsers(file);
@@ -135,6 +181,7 @@ export class UserDirectory {
     const stamp = this.currentStamp();
     if (stamp === this.stamp) return;
     this.stamp = stamp;
+    this.gen++;
     try {
       const users = readUsers(this.file);
       if (users) {
@@ -157,5 +204,26 @@ export class UserDirectory {
   find(name: string): UserRecord | null {
     this.refresh();
     return this.users?.find((u) => u.name === name) ?? null;
+  }
+
+  /** Goes up each time the users file changed on disk (re-read), so sessions can be re-checked. */
+  get generation(): number {
+    this.refresh();
+    return this.gen;
+  }
+
+  /**
+   * The hash to compare against when there is no real one (unknown user, not a supervisor, no
+   * PIN): with the cost of the users' hashes of that kind (PINs: else of the passwords), else
+   * `hashSecret`'s default, so that the answer takes as long as for a real user.
+   */
+  dummyHash(kind: 'password' | 'pin'): string {
+    this.refresh();
+    const list = this.users ?? [];
+    const cost =
+      (kind === 'pin' ? usualCost(list.map((u) => u.pinHash)) : null) ??
+      usualCost(list.map((u) => u.passwordHash)) ??
+      DEFAULT_COST;
+    return dummyWithCost(cost);
   }
 }

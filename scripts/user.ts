@@ -1,6 +1,9 @@
 import os from 'node:os';
 import { AuditLog } from '../gateway/audit';
 import {
+  DEFAULT_COST,
+  PIN_RULE,
+  PIN_RULE_TEXT,
   USER_NAME,
   dataDirPath,
   hashSecret,
@@ -20,7 +23,7 @@ import { MACHINE_ID, ROLES, type Role } from '../src/fleet/types';
  *   role <name> <role>            change a user's role
  *   machines <name> a,b|all       limit a user to some machines
  *   passwd <name> [--password-stdin]
- *   pin <name> [--password-stdin] set the PIN a supervisor unlocks a tablet with
+ *   pin <name> [--password-stdin] set the PIN (6 to 12 digits) a supervisor unlocks a tablet with
  *   remove <name>
  *   list
  *
@@ -133,7 +136,8 @@ async function readSecret(
   }
   if (what === 'password' && v.length < 8)
     throw new UsageError('the password must have at least 8 characters');
-  if (what === 'PIN' && !/^\d{4,12}$/.test(v)) throw new UsageError('the PIN must be 4 to 12 digits');
+  if (what === 'PIN' && !PIN_RULE.test(v))
+    throw new UsageError(`${PIN_RULE_TEXT} (${/^\d*$/.test(v) ? `${v.length} given` : 'digits only'})`);
   return v;
 }
 
@@ -147,7 +151,9 @@ export async function main(
   const dataDir = dataDirPath({ env, cwd });
   const file = usersFilePath({ dataDir, env, cwd });
   const audit = new AuditLog(dataDir);
-  const cost = Number(env.SHOPDECK_BCRYPT_COST ?? 12);
+  const cost = Number(env.SHOPDECK_BCRYPT_COST ?? DEFAULT_COST);
+  if (!Number.isInteger(cost) || cost < 4 || cost > 31)
+    throw new UsageError('SHOPDECK_BCRYPT_COST must be a whole number from 4 to 31');
   const by = `${os.userInfo().username} (command line)`;
   const fromStdin = flag(args, '--password-stdin');
   const withPin = flag(args, '--pin');

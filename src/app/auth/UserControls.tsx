@@ -25,6 +25,9 @@ function useNow(everyMs: number): number {
   return now;
 }
 
+/** A supervisor PIN: 6 to 12 digits (the gateway does not check shorter ones). */
+const PIN_DIGITS = /^\d{6,12}$/;
+
 function PinDialog(props: { onDone: () => void }) {
   const [name, setName] = useState('');
   const [pin, setPin] = useState('');
@@ -33,7 +36,7 @@ function PinDialog(props: { onDone: () => void }) {
   const { onDone } = props;
   const submit = async (e?: FormEvent) => {
     e?.preventDefault();
-    if (busy) return;
+    if (busy || !name.trim() || !PIN_DIGITS.test(pin)) return;
     setBusy(true);
     setError(null);
     try {
@@ -56,7 +59,7 @@ function PinDialog(props: { onDone: () => void }) {
           <Button
             variant="primary"
             busy={busy}
-            disabled={busy || !name.trim() || !pin}
+            disabled={busy || !name.trim() || !PIN_DIGITS.test(pin)}
             onClick={() => void submit()}
           >
             Unlock
@@ -82,7 +85,10 @@ function PinDialog(props: { onDone: () => void }) {
             />
           )}
         </Field>
-        <Field label="PIN">
+        <Field
+          label="PIN"
+          hint={pin && pin.length < 6 ? `At least 6 digits (${pin.length} so far).` : '6 to 12 digits.'}
+        >
           {(id) => (
             <input
               id={id}
@@ -90,8 +96,9 @@ function PinDialog(props: { onDone: () => void }) {
               type="password"
               inputMode="numeric"
               autoComplete="off"
+              maxLength={12}
               value={pin}
-              onChange={(e) => setPin(e.target.value.replace(/\D/g, ''))}
+              onChange={(e) => setPin(e.target.value.replace(/\D/g, '').slice(0, 12))}
             />
           )}
         </Field>
@@ -103,8 +110,9 @@ function PinDialog(props: { onDone: () => void }) {
 }
 
 /**
- * For an operator's (or viewer's) tablet: "Supervisor unlock" opens the PIN dialog; while
- * unlocked it shows who unlocked it, until when, and "Lock now".
+ * For an operator's tablet: "Supervisor unlock" opens the PIN dialog; while unlocked it shows
+ * who unlocked it, until when, and "Lock now". Viewers' and supervisors' sessions cannot be
+ * unlocked (the gateway refuses).
  */
 export function PinUnlock(props: { compact?: boolean }) {
   const mode = useStore(authStore, (s) => s.mode);
@@ -129,7 +137,7 @@ export function PinUnlock(props: { compact?: boolean }) {
       </div>
     );
   }
-  if (user.role === 'supervisor') return null;
+  if (user.role !== 'operator') return null;
   return (
     <>
       <Button small={props.compact} onClick={() => setOpen(true)} data-testid="pin-unlock">
