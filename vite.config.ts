@@ -10,5 +10,6 @@ export default defineConfig({
     port: Number(process.env.SHOPDECK_PORT ?? 4173),
     host: process.env.SHOPDECK_HOST ?? 'localhost',
   },
-  build: { sourcemap: true, chunkSizeWarningLimit: 2000 },
+  // No source maps in the served build (they would publish the sources); `npm run dev` has its own.
+  build: { sourcemap: false, chunkSizeWarningLimit: 2000 },
 });

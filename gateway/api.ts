@@ -1,14 +1,12 @@
-import bcrypt from 'bcryptjs';
-import { randomBytes } from 'node:crypto';
 import { type IncomingMessage, type ServerResponse } from 'node:http';
 import { z } from 'zod';
 import { roleAtLeast } from '../src/fleet/types';
 import { auditQueryFrom, toCsv } from './audit';
-import { SESSION_COOKIE } from './auth';
+import { LoginHistory, SESSION_COOKIE, type LimitKey } from './auth';
 import { discoverXtool } from './discovery';
-import { clientAddress, parseCookies, readJson, sameOrigin, sendJson } from './http-util';
+import { clientAddress, parseCookies, readJson, sendJson } from './http-util';
 import { machineInfo } from './machines';
-import { checkSecret } from './users';
+import { PIN_RULE, checkSecret } from './users';
 import type { GatewayContext, Who } from './context';
 import { envNumber } from './context';
 
@@ -29,11 +27,11 @@ const clientAuditSchema = z.object({
 const loginSchema = z.object({ name: z.string().min(1).max(64), password: z.string().min(1).max(1024) });
 const elevateSchema = z.object({ name: z.string().min(1).max(64), pin: z.string().min(1).max(64) });
 
-/** A hash of nothing in particular: compared against when the user does not exist (same timing). */
-let dummyHash: string | null = null;
-function dummy(): string {
-  dummyHash ??= bcrypt.hashSync(randomBytes(16).toString('hex'), 10);
-  return dummyHash;
+/** Client audit records a session may send a minute (the browser sends one per command). */
+const CLIENT_AUDIT_PER_MINUTE = 60;
+
+function tooMany(res: ServerResponse, error: string, retryAfterS: number): void {
+  sendJson(res, 429, { error, retryAfterS }, { 'Retry-After': String(retryAfterS) });
 }
 
 export function createApi(ctx: GatewayContext) {
@@ -57,6 +55,46 @@ export function createApi(ctx: GatewayContext) {
     mayUseMachine,
     needLogin,
   } = ctx;
+  const limits = limiter.opts;
+  /** Where each user logged in from: the per-user backstop spares those addresses. */
+  const logins = new LoginHistory(now);
+  /** PIN locks already written to the audit log (name → when), one entry per lock. */
+  const locksNoted = new Map<string, number>();
+
+  /**
+   * A login attempt counts per (user, address) and per address; per user only from addresses
+   * the user never logged in from (a backstop against many addresses that cannot lock the real
+   * user out of their tablet).
+   */
+  function loginKeys(name: string, address: string): LimitKey[] {
+    const keys: LimitKey[] = [
+      { key: `login:${JSON.stringify([name, address])}`, limit: limits.perUser },
+      { key: `addr:${address}`, limit: limits.perAddress },
+    ];
+    if (!logins.knows(name, address)) keys.push({ key: `user:${name}`, limit: limits.perUserTotal });
+    return keys;
+  }
+
+  /** A PIN attempt counts per supervisor, from any address (the PIN locks), and per address. */
+  function pinKeys(name: string, address: string): LimitKey[] {
+    return [
+      { key: `pin:${name}`, limit: limits.perPin },
+      { key: `addr:${address}`, limit: limits.perAddress },
+    ];
+  }
+
+  /** After a wrong PIN: " the PIN of X is now locked …" the first time X's PIN reaches its limit. */
+  function pinLockNote(name: string): string {
+    const key: LimitKey = { key: `pin:${name}`, limit: limits.perPin };
+    if (limiter.count(key) < key.limit) return '';
+    const t = now();
+    const noted = locksNoted.get(name);
+    if (noted !== undefined && t - noted < limits.windowMs) return '';
+    if (locksNoted.size > 1000)
+      for (const [k, at] of locksNoted) if (t - at >= limits.windowMs) locksNoted.delete(k);
+    locksNoted.set(name, t);
+    return `; the PIN of ${name} is locked for up to ${Math.round(limits.windowMs / 60_000)} min after ${key.limit} wrong PINs from any address (the password still works)`;
+  }
 
   // ---------------------------------------------------------------- /api
 
@@ -64,10 +102,7 @@ export function createApi(ctx: GatewayContext) {
     const method = req.method ?? 'GET';
     const route = `${method} ${url.pathname}`;
     const address = clientAddress(req);
-    if (method !== 'GET' && method !== 'HEAD' && !sameOrigin(req)) {
-      sendJson(res, 403, { error: 'cross-site request refused' });
-      return;
-    }
+    // Cross-site requests were refused before this (gateway.ts, csrf.ts).
     switch (route) {
       case 'GET /api/session': {
         sendJson(res, 200, sessionBody(who(req, false)));
@@ -89,29 +124,26 @@ export function createApi(ctx: GatewayContext) {
           return;
         }
         const { name, password } = body.data;
-        const keys = [`user:${name}`, `addr:${address}`];
-        const wait = limiter.retryAfter(keys);
-        if (wait > 0) {
+        // Counted BEFORE the slow comparison: concurrent guesses cannot all pass the check.
+        const keys = loginKeys(name, address);
+        const slot = limiter.reserve(keys);
+        if (!slot.ok) {
           record({
             type: 'login-failed',
             result: 'refused',
             user: name,
             source: 'gateway',
             address,
-            error: 'too many failed logins',
+            error: slot.key.startsWith('user:')
+              ? 'too many failed logins for this user from addresses it never logged in from'
+              : 'too many failed logins',
           });
-          sendJson(
-            res,
-            429,
-            { error: `too many failed logins: try again in ${wait} s`, retryAfterS: wait },
-            { 'Retry-After': String(wait) },
-          );
+          tooMany(res, `too many failed logins: try again in ${slot.retryAfterS} s`, slot.retryAfterS);
           return;
         }
         const u = users.find(name);
-        const ok = await checkSecret(password, u?.passwordHash ?? dummy());
+        const ok = await checkSecret(password, u?.passwordHash ?? users.dummyHash('password'));
         if (!u || !ok) {
-          limiter.fail(keys);
           record({
             type: 'login-failed',
             result: 'failed',
@@ -123,7 +155,15 @@ export function createApi(ctx: GatewayContext) {
           sendJson(res, 401, { error: 'wrong name or password' });
           return;
         }
-        limiter.reset(`user:${name}`);
+        slot.release();
+        limiter.clear(keys[0]!.key);
+        logins.remember(u.name, address);
+        // The login replaces whatever session this browser had: none is left behind.
+        const previous = parseCookies(req.headers.cookie)[SESSION_COOKIE];
+        if (previous) {
+          sessions.delete(previous);
+          revalidateSockets();
+        }
         const s = sessions.create(u.name, u.role);
         record({ type: 'login', result: 'ok', user: u.name, role: u.role, source: 'gateway', address });
         const w: Who = {
@@ -162,16 +202,38 @@ export function createApi(ctx: GatewayContext) {
           needLogin(res, w);
           return;
         }
+        const onBehalfOf = w.session.user;
+        const tablet = users.find(onBehalfOf);
+        if (tablet?.role !== 'operator') {
+          // Only an operator's tablet is unlocked: viewers send no commands, supervisors need no
+          // PIN. Refused without looking at the PIN.
+          const claimed = elevateSchema.safeParse(await readJson(req).catch(() => ({})));
+          record({
+            type: 'elevate-failed',
+            result: 'refused',
+            user: claimed.success ? claimed.data.name : onBehalfOf,
+            onBehalfOf,
+            source: 'gateway',
+            address,
+            role: 'operator',
+            error: `only an operator's session can be unlocked (${onBehalfOf} is ${tablet?.role ?? 'gone'})`,
+          });
+          sendJson(res, 403, {
+            error: 'a supervisor PIN unlocks only an operator’s tablet',
+            needs: 'operator',
+          });
+          return;
+        }
         const body = elevateSchema.safeParse(await readJson(req));
         if (!body.success) {
           sendJson(res, 400, { error: 'send { "name": …, "pin": … }' });
           return;
         }
         const { name, pin } = body.data;
-        const keys = [`pin:${name}`, `addr:${address}`];
-        const wait = limiter.retryAfter(keys);
-        const onBehalfOf = w.session.user;
-        if (wait > 0) {
+        // Counted BEFORE the slow comparison: concurrent guesses cannot all pass the check.
+        const slot = limiter.reserve(pinKeys(name, address));
+        if (!slot.ok) {
+          const locked = slot.key === `pin:${name}`;
           record({
             type: 'elevate-failed',
             result: 'refused',
@@ -179,20 +241,18 @@ export function createApi(ctx: GatewayContext) {
             onBehalfOf,
             source: 'gateway',
             address,
-            error: 'too many failed PINs',
+            error: locked ? `the PIN of ${name} is locked: too many wrong PINs` : 'too many failed PINs',
           });
-          sendJson(
+          tooMany(
             res,
-            429,
-            { error: `too many failed PINs: try again in ${wait} s`, retryAfterS: wait },
-            { 'Retry-After': String(wait) },
+            locked
+              ? `too many wrong PINs for ${name}: the PIN is locked, try again in ${slot.retryAfterS} s`
+              : `too many failed PINs: try again in ${slot.retryAfterS} s`,
+            slot.retryAfterS,
           );
           return;
         }
-        const sup = users.find(name);
-        const ok = await checkSecret(pin, sup?.pinHash ?? dummy());
-        if (!sup || !ok || sup.role !== 'supervisor' || !sup.pinHash) {
-          limiter.fail(keys);
+        const fail = (error: string, answer: string): void => {
           record({
             type: 'elevate-failed',
             result: 'failed',
@@ -200,12 +260,26 @@ export function createApi(ctx: GatewayContext) {
             onBehalfOf,
             source: 'gateway',
             address,
-            error: 'wrong supervisor or PIN',
+            error: error + pinLockNote(name),
           });
-          sendJson(res, 401, { error: 'wrong supervisor name or PIN' });
+          sendJson(res, 401, { error: answer });
+        };
+        if (!PIN_RULE.test(pin)) {
+          // Not evaluated, but counted like any wrong PIN.
+          fail(
+            'a PIN has 6 to 12 digits: not checked',
+            'wrong supervisor name or PIN (a PIN has 6 to 12 digits; a shorter one must be set again with npm run user -- pin)',
+          );
           return;
         }
-        limiter.reset(`pin:${name}`);
+        const sup = users.find(name);
+        const real = sup?.role === 'supervisor' && sup.pinHash ? sup.pinHash : null;
+        const ok = await checkSecret(pin, real ?? users.dummyHash('pin'));
+        if (!sup || !real || !ok) {
+          fail('wrong supervisor or PIN', 'wrong supervisor name or PIN');
+          return;
+        }
+        slot.release();
         w.session.elevation = { supervisor: sup.name, until: now() + elevationMs };
         record({
           type: 'elevate',
@@ -279,6 +353,27 @@ export function createApi(ctx: GatewayContext) {
         const w = who(req, true);
         if (!w.principal) {
           needLogin(res, w);
+          return;
+        }
+        if (!roleAtLeast(w.principal.role, 'operator')) {
+          req.resume();
+          sendJson(res, 403, {
+            error: 'viewers send no commands: there is nothing to record',
+            needs: 'operator',
+          });
+          return;
+        }
+        // A session may not flood the log (the browser sends one record per command).
+        const slot = limiter.reserve([
+          {
+            key: `client-audit:${w.session?.token ?? address}`,
+            limit: CLIENT_AUDIT_PER_MINUTE,
+            windowMs: 60_000,
+          },
+        ]);
+        if (!slot.ok) {
+          req.resume();
+          tooMany(res, `too many audit records: try again in ${slot.retryAfterS} s`, slot.retryAfterS);
           return;
         }
         const body = clientAuditSchema.safeParse(await readJson(req));

@@ -20,7 +20,10 @@ export type AuditType =
   | 'user-added'
   | 'user-removed'
   | 'role-change'
-  | 'password-change';
+  | 'password-change'
+  /** A controller's TLS certificate trusted on first use, or forgotten by a supervisor. */
+  | 'tls-trust'
+  | 'tls-forget';
 
 export type AuditResult = 'ok' | 'error' | 'refused' | 'failed';
 

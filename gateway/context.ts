@@ -1,3 +1,5 @@
+import { PinStore } from './tls-pin';
+import { secretPatterns } from './redact';
 import http, { type IncomingMessage, type ServerResponse } from 'node:http';
 import https from 'node:https';
 import { isIP } from 'node:net';
@@ -26,6 +28,8 @@ import { UserDirectory, dataDirPath, usersFilePath } from './users';
 export type Families = Partial<Record<MachineKind, FamilyDescriptor>>;
 
 export interface GatewayOptions {
+  /** Open mode served beyond this computer (SHOPDECK_OPEN=1): the page's banner says so. */
+  openOnNetwork?: boolean;
   machinesFile?: string;
   dataDir?: string;
   usersFile?: string;
@@ -106,8 +110,15 @@ export interface GatewayContext {
   readonly liveSockets: Map<WebSocket, LiveSocket>;
   /** Closes every bridged socket whose session, user, role or machine access is gone. */
   revalidateSockets(): void;
+  /** Pinned TLS certificates of the controllers (tls-pin.ts). */
+  readonly pins: PinStore;
+  /** Every byte form of a machine's secrets, searched for in its answers and frames (redact.ts). */
+  patternsFor(m: MachineEntry): readonly Buffer[];
   hostAllowed(req: IncomingMessage): boolean;
+  /** Writes an audit entry; refusals of unauthenticated clients pass `refusals` first. */
   record(e: Omit<AuditEntry, 'time'>): void;
+  /** Limits refusals of unauthenticated clients per address (`dispose()` writes what is pending). */
+  readonly refusals: RefusalAggregator;
   scrub(text: string): string;
   who(req: IncomingMessage, touch: boolean): Who;
   sessionBody(w: Who): unknown;
@@ -165,6 +176,16 @@ export function createContext(opts: GatewayOptions): GatewayContext {
   const httpsAgent = new https.Agent({ keepAlive: false, rejectUnauthorized: false });
   const state = { closed: false };
   const liveSockets = new Map<WebSocket, LiveSocket>();
+  const pins = new PinStore(dataDir);
+  const patternCache = new Map<string, readonly Buffer[]>();
+  const patternsFor = (m: MachineEntry): readonly Buffer[] => {
+    let p = patternCache.get(m.id);
+    if (!p) {
+      p = secretPatterns(m.secrets);
+      patternCache.set(m.id, p);
+    }
+    return p;
+  };
 
   const allowedHosts = opts.allowedHosts ?? true;
   function hostAllowed(req: IncomingMessage): boolean {
@@ -183,15 +204,72 @@ export function createContext(opts: GatewayOptions): GatewayContext {
   }
 
   const nowIso = (): string => new Date(now()).toISOString();
-  const record = (e: Omit<AuditEntry, 'time'>): void => {
+  const append = (e: Omit<AuditEntry, 'time'> & { time?: string }): void => {
     try {
-      audit.append({ ...e, time: nowIso() });
+      audit.append({ ...e, time: e.time ?? nowIso() });
     } catch (err) {
       console.error(`shopdeck: could not write the audit log: ${String(err)}`);
     }
   };
+  // Refusals of unauthenticated clients (and of the login/PIN limiter) are limited per address.
+  const refusals = new RefusalAggregator(REFUSAL_LIMIT, now, append);
+  const record = (e: Omit<AuditEntry, 'time'>): void => {
+    if (refusals.admit(e)) append(e);
+  };
   const scrub = (text: string): string => redact(text, allSecrets);
   // ---------------------------------------------------------------- who is asking
+
+  let seenUsers = users.generation;
+  /**
+   * Sessions follow the users file as soon as it changes (any request notices): a session takes
+   * its user's new role (and with it the idle timeout), an unlock ends when the tablet's user is
+   * no longer an operator, a removed user's sessions end; then bridged sockets are re-checked.
+   */
+  function followUsersFile(): void {
+    const generation = users.generation;
+    if (generation === seenUsers) return;
+    seenUsers = generation;
+    const seen = new Set<string>();
+    for (const s of sessions.list()) {
+      const u = users.find(s.user);
+      if (!u) {
+        const n = sessions.dropUser(s.user);
+        record({
+          type: 'user-removed',
+          result: 'ok',
+          user: s.user,
+          source: 'gateway',
+          detail: `no longer in the users file: ${n} session${n === 1 ? '' : 's'} ended`,
+        });
+        continue;
+      }
+      if (u.role !== s.role) {
+        if (!seen.has(u.name))
+          record({
+            type: 'role-change',
+            result: 'ok',
+            user: u.name,
+            role: u.role,
+            source: 'gateway',
+            detail: `${s.role} → ${u.role} (seen by the gateway on a live session: idle timeout now ${sessions.idleSeconds(u.role)} s)`,
+          });
+        seen.add(u.name);
+        s.role = u.role;
+      }
+      if (s.elevation && u.role !== 'operator') {
+        record({
+          type: 'elevate-end',
+          result: 'ok',
+          user: s.elevation.supervisor,
+          onBehalfOf: u.name,
+          source: 'gateway',
+          detail: `${u.name} is no longer an operator`,
+        });
+        s.elevation = null;
+      }
+    }
+    revalidateSockets();
+  }
 
   function who(req: IncomingMessage, touch: boolean): Who {
     if (users.mode === 'open') {
@@ -202,6 +280,7 @@ export function createContext(opts: GatewayOptions): GatewayContext {
         expired: false,
       };
     }
+    followUsersFile();
     const token = parseCookies(req.headers.cookie)[SESSION_COOKIE];
     const s = sessions.get(token, touch);
     if (s && 'expired' in s) {
@@ -223,7 +302,7 @@ export function createContext(opts: GatewayOptions): GatewayContext {
     }
     if (s.elevation) {
       const sup = users.find(s.elevation.supervisor);
-      if (sup && sup.role === 'supervisor') {
+      if (sup && sup.role === 'supervisor' && u.role === 'operator') {
         return {
           mode: 'secured',
           principal: { name: sup.name, role: 'supervisor', machines: sup.machines, onBehalfOf: u.name },
@@ -250,6 +329,7 @@ export function createContext(opts: GatewayOptions): GatewayContext {
     const p = w.mode === 'secured' ? w.principal : null;
     return {
       mode: w.mode,
+      ...(w.mode === 'open' ? { openOnNetwork: opts.openOnNetwork === true } : {}),
       user: p ? { name: p.name, role: p.role, machines: p.machines } : null,
       idleTimeoutS: u ? sessions.idleSeconds(w.session?.role ?? u.role) : null,
       elevation:
@@ -403,5 +483,104 @@ export function createContext(opts: GatewayOptions): GatewayContext {
     state,
     liveSockets,
     revalidateSockets,
+    refusals,
+    patternsFor,
+    pins,
   };
+}
+
+// ---------------------------------------------------------------- refusals of unknown clients
+
+export interface RefusalLimit {
+  windowMs: number;
+  /** Entries per address written in a window; the rest are counted into one summary. */
+  firstN: number;
+}
+
+export const REFUSAL_LIMIT: RefusalLimit = { windowMs: 60_000, firstN: 10 };
+
+type AuditRecord = Omit<AuditEntry, 'time'>;
+
+/**
+ * What anyone can make the gateway write without logging in, as often as they like: refusals of
+ * clients without a session (`user: "nobody"`) and attempts the login/PIN limiter refused.
+ */
+function floodable(e: AuditRecord): boolean {
+  if (e.type === 'refused') return e.user === 'nobody';
+  return (e.type === 'login-failed' || e.type === 'elevate-failed') && e.result === 'refused';
+}
+
+/**
+ * Keeps such refusals from filling the audit log: per address, the first `firstN` in a window
+ * are written, the rest counted and written as ONE entry ("37 more refused requests from
+ * 10.0.0.9 in the last minute", timed at the window's end) when the window ends: on the next
+ * record (`admit`) or from an unref'd timer, whichever comes first. Everything else passes.
+ */
+export class RefusalAggregator {
+  private windows = new Map<string, { start: number; written: number; more: number }>();
+  private timer: NodeJS.Timeout | null = null;
+
+  constructor(
+    private readonly limit: RefusalLimit,
+    private readonly now: () => number,
+    private readonly write: (e: AuditRecord & { time: string }) => void,
+  ) {}
+
+  /** True: write `e` now. False: it was counted into the address's summary. */
+  admit(e: AuditRecord): boolean {
+    const t = this.now();
+    this.flush(t);
+    if (!floodable(e)) return true;
+    const address = e.address ?? 'unknown';
+    let w = this.windows.get(address);
+    if (!w) {
+      if (this.windows.size >= 10_000) this.flush(Number.POSITIVE_INFINITY);
+      w = { start: t, written: 0, more: 0 };
+      this.windows.set(address, w);
+    }
+    if (w.written < this.limit.firstN) {
+      w.written++;
+      return true;
+    }
+    w.more++;
+    this.arm();
+    return false;
+  }
+
+  /** Writes the summaries of the windows that ended by `t` (every window: `Infinity`). */
+  flush(t: number = this.now()): void {
+    for (const [address, w] of this.windows) {
+      const end = w.start + this.limit.windowMs;
+      if (end > t) continue;
+      this.windows.delete(address);
+      if (!w.more) continue;
+      const span = this.limit.windowMs === 60_000 ? 'minute' : `${Math.round(this.limit.windowMs / 1000)} s`;
+      this.write({
+        type: 'refused',
+        result: 'refused',
+        user: 'nobody',
+        source: 'gateway',
+        address,
+        detail: `${w.more} more refused requests from ${address} in the last ${span}`,
+        time: new Date(Math.min(end, this.now())).toISOString(),
+      });
+    }
+  }
+
+  /** Writes every pending summary and stops the timer (the gateway closes). */
+  dispose(): void {
+    if (this.timer) clearTimeout(this.timer);
+    this.timer = null;
+    this.flush(Number.POSITIVE_INFINITY);
+  }
+
+  private arm(): void {
+    if (this.timer) return;
+    this.timer = setTimeout(() => {
+      this.timer = null;
+      this.flush();
+      if ([...this.windows.values()].some((w) => w.more > 0)) this.arm();
+    }, this.limit.windowMs);
+    this.timer.unref();
+  }
 }

@@ -1,7 +1,7 @@
 import { afterEach, describe, expect, it } from 'vitest';
 import { families } from '../src/controllers/families';
 import { demoFleet, type MachineEntry } from './machines';
-import { startGateway, tempDir, type Running } from './test-util';
+import { startGateway, tempDir, type Running, consoleFetch } from './test-util';
 
 const open: Array<{ close(): Promise<void> | void }> = [];
 afterEach(async () => {
@@ -13,7 +13,7 @@ async function machinesAnswer(file: string | null, machines: MachineEntry[]): Pr
   open.push({ close: () => t.cleanup() });
   const gw: Running = await startGateway({ machines: { file, machines }, families, dataDir: t.dir, env: {} });
   open.push(gw);
-  return (await fetch(`${gw.url}/api/machines`)).json();
+  return (await consoleFetch(`${gw.url}/api/machines`)).json();
 }
 
 describe('GET /api/machines demo flag', () => {

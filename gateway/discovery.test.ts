@@ -2,7 +2,7 @@ import dgram from 'node:dgram';
 import net from 'node:net';
 import { afterEach, describe, expect, it } from 'vitest';
 import { discoverXtool, parseReply } from './discovery';
-import { startGateway, tempDir } from './test-util';
+import { startGateway, tempDir, consoleFetch } from './test-util';
 
 /**
  * A laser stand-in on 127.0.0.1: receives the broadcast on its UDP port, answers on TCP first,
@@ -105,7 +105,7 @@ describe('xTool discovery', () => {
       discovery: { udpPort: laser.port, listenUdpPort, tcpPort, listenMs: 1000, bindAddress: '127.0.0.1' },
     });
     cleanups.push(gw.close);
-    const body = (await (await fetch(`${gw.url}/api/discover/xtool`)).json()) as {
+    const body = (await (await consoleFetch(`${gw.url}/api/discover/xtool`)).json()) as {
       replies: Array<{ via: string }>;
       broadcast: string;
     };

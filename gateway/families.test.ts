@@ -4,7 +4,7 @@ import type { FamilyDescriptor } from '../src/fleet/contract';
 import { MACHINE_KINDS, ROLES, roleAtLeast, type MachineKind, type Role } from '../src/fleet/types';
 import type { Families } from './gateway';
 import type { MachineEntry } from './machines';
-import { login, openWs, startGateway, startStub, tempDir, user, writeJson } from './test-util';
+import { login, openWs, startGateway, startStub, tempDir, user, writeJson, consoleFetch } from './test-util';
 
 /**
  * Every role against every registered family's declared requests, HTTP and WebSocket: the
@@ -159,7 +159,7 @@ describe('registered families × roles', () => {
               body = (e as { body?: string }).body ?? '';
             }
           } else {
-            const r = await fetch(`${gw.url}/machines/${m.id}${p.path}`, {
+            const r = await consoleFetch(`${gw.url}/machines/${m.id}${p.path}`, {
               method: p.method,
               headers: { Cookie: cookie },
               body: p.body,
@@ -172,7 +172,14 @@ describe('registered families × roles', () => {
             expect({ label, status, reached }).toEqual({ label, status: p.ws ? 101 : 200, reached: 1 });
           } else {
             expect({ label, status, reached }).toEqual({ label, status: 403, reached: 0 });
-            expect(JSON.parse(body)).toMatchObject({ needs: need });
+            // A request classified by its body is refused before the body is read, with the least
+            // role any body could need (operator) when the user is below that.
+            const said = (JSON.parse(body) as { needs: string }).needs;
+            expect(
+              said === need ||
+                (p.body !== undefined && !roleAtLeast(role, 'operator') && said === 'operator'),
+              `${label}: needs ${said}`,
+            ).toBe(true);
           }
           // No configured secret ever comes back.
           expect(body).not.toContain('family-test-api-key');

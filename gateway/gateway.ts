@@ -3,7 +3,8 @@ import type { Duplex } from 'node:stream';
 import { createApi } from './api';
 import { createContext, type GatewayOptions } from './context';
 import type { AuditLog } from './audit';
-import { BodyTooLarge, rejectUpgrade, sameOrigin, sendJson } from './http-util';
+import { crossSiteProblem } from './csrf';
+import { BodyTooLarge, clientAddress, rejectUpgrade, sendJson } from './http-util';
 import type { MachinesConfig } from './machines';
 import { createHttpProxy, READ_METHODS } from './proxy-http';
 import { createWsProxy } from './proxy-ws';
@@ -34,6 +35,8 @@ export function createGateway(opts: GatewayOptions): Gateway {
   const {
     config,
     usersFile,
+    record,
+    who,
     audit,
     byId,
     sims,
@@ -45,6 +48,9 @@ export function createGateway(opts: GatewayOptions): Gateway {
     scrub,
     state,
   } = ctx;
+  // Sessions expire and users files change without a request: re-check bridged sockets often.
+  const sweep = setInterval(() => ctx.revalidateSockets(), 2000);
+  sweep.unref();
   const api = createApi(ctx);
   const proxy = createHttpProxy(ctx);
   const upgradeMachine = createWsProxy(ctx);
@@ -65,6 +71,25 @@ export function createGateway(opts: GatewayOptions): Gateway {
         sendJson(res, 403, { error: 'this host name is not allowed' });
         return;
       }
+      const method = (req.method ?? 'GET').toUpperCase();
+      const crossSite = crossSiteProblem(req, READ_METHODS.has(method) ? 'read' : 'command');
+      if (crossSite) {
+        req.resume();
+        {
+          record({
+            type: 'refused',
+            result: 'refused',
+            user: who(req, false).principal?.name ?? 'nobody',
+            source: 'gateway',
+            method,
+            path: scrub(raw.slice(0, 300)),
+            address: clientAddress(req),
+            error: crossSite,
+          });
+        }
+        sendJson(res, 403, { error: `refused: ${crossSite}`, crossSite: true });
+        return;
+      }
       if (isApi) {
         await api(req, res, new URL(raw, 'http://gateway.local'));
         return;
@@ -79,11 +104,6 @@ export function createGateway(opts: GatewayOptions): Gateway {
       if (!m) {
         req.resume();
         sendJson(res, 404, { error: `no machine "${id}" in the machines file` });
-        return;
-      }
-      if (!READ_METHODS.has((req.method ?? 'GET').toUpperCase()) && !sameOrigin(req)) {
-        req.resume();
-        sendJson(res, 403, { error: 'cross-site request refused' });
         return;
       }
       await proxy(req, res, m, machine?.[2] || '/');
@@ -114,6 +134,8 @@ export function createGateway(opts: GatewayOptions): Gateway {
 
   function close(): void {
     state.closed = true;
+    clearInterval(sweep);
+    ctx.refusals.dispose();
     for (const s of openSockets) s.terminate();
     openSockets.clear();
     for (const r of pending) r.destroy();

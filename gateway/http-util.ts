@@ -98,6 +98,8 @@ const HOP_BY_HOP = new Set([
   'content-length',
 ]);
 
+const METHOD_OVERRIDE = new Set(['x-http-method-override', 'x-http-method', 'x-method-override']);
+
 function connectionTokens(headers: IncomingHttpHeaders): Set<string> {
   const c = headers.connection;
   const s = new Set<string>();
@@ -118,7 +120,9 @@ export function forwardRequestHeaders(headers: IncomingHttpHeaders): Record<stri
     const key = k.toLowerCase();
     if (v === undefined) continue;
     if (HOP_BY_HOP.has(key) || conn.has(key)) continue;
-    if (key === 'cookie' || key.startsWith('x-shopdeck-')) continue;
+    if (key === 'cookie' || key === 'x-shopdeck' || key.startsWith('x-shopdeck-')) continue;
+    // A controller's framework may honour these and run another method than the one classified.
+    if (METHOD_OVERRIDE.has(key)) continue;
     if (key === 'origin' || key === 'referer' || key === 'accept-encoding') continue;
     if (key.startsWith('sec-websocket-') || key.startsWith('x-forwarded-') || key === 'forwarded') continue;
     out[key] = Array.isArray(v) ? v.join(', ') : v;

@@ -5,7 +5,7 @@ import { createServer, preview } from 'vite';
 import { WebSocket } from 'ws';
 import { afterEach, describe, expect, it } from 'vitest';
 import { shopdeckGateway } from './plugin';
-import { openWs, startStub, tempDir, writeJson } from './test-util';
+import { openWs, startStub, tempDir, writeJson, consoleFetch } from './test-util';
 
 /** The plugin inside real Vite servers: dev (`vite`) and preview (`vite preview`). */
 
@@ -73,13 +73,13 @@ describe('shopdeckGateway() in Vite', () => {
     cleanups.push(() => server.close());
     await server.listen();
     const base = `http://127.0.0.1:${portOf(server.httpServer)}`;
-    expect(await (await fetch(`${base}/api/machines`)).json()).toEqual({
+    expect(await (await consoleFetch(`${base}/api/machines`)).json()).toEqual({
       machines: [{ id: 'laser-1', name: 'Laser 1', kind: 'xtool', simulated: false }],
       demo: false,
     });
-    const r = await fetch(`${base}/machines/laser-1/progress`);
+    const r = await consoleFetch(`${base}/machines/laser-1/progress`);
     expect(await r.json()).toEqual({ ok: true, path: '/progress' });
-    expect((await fetch(`${base}/machines/laser-9/progress`)).status).toBe(404);
+    expect((await consoleFetch(`${base}/machines/laser-9/progress`)).status).toBe(404);
     const w = await openWs(`${base.replace('http', 'ws')}/machines/laser-1/`);
     expect(w.first).toBe('hello');
     await w.close();
@@ -92,7 +92,7 @@ describe('shopdeckGateway() in Vite', () => {
     hmr.terminate();
     expect(opened).toBe(true);
     // The page itself is Vite's.
-    expect((await fetch(`${base}/`)).status).toBe(200);
+    expect((await consoleFetch(`${base}/`)).status).toBe(200);
   });
 
   it('works in vite preview (the served build)', async () => {
@@ -114,15 +114,15 @@ describe('shopdeckGateway() in Vite', () => {
     });
     cleanups.push(() => server.close());
     const base = `http://127.0.0.1:${portOf(server.httpServer)}`;
-    const r = await fetch(`${base}/machines/p1/status`, {
+    const r = await consoleFetch(`${base}/machines/p1/status`, {
       method: 'POST',
       body: '{}',
       headers: { 'X-Shopdeck-Command': 'prunt.x' },
     });
     expect(r.status).toBe(200);
     expect(stub.seen[0]).toMatchObject({ method: 'POST', url: '/status' });
-    const session = await (await fetch(`${base}/api/session`)).json();
+    const session = await (await consoleFetch(`${base}/api/session`)).json();
     expect(session).toMatchObject({ mode: 'open' });
-    expect(await (await fetch(`${base}/`)).text()).toContain('built');
+    expect(await (await consoleFetch(`${base}/`)).text()).toContain('built');
   });
 });

@@ -4,7 +4,30 @@ import type { Plugin, PreviewServer, ViteDevServer } from 'vite';
 import { families } from '../src/controllers/families';
 import { createGateway } from './gateway';
 import { loadMachines, type MachinesConfig } from './machines';
+import { pageHeadersMiddleware } from './page-headers';
 import { dataDirPath, readUsers, usersFilePath } from './users';
+
+const LOOPBACK = /^(localhost|127(?:\.\d{1,3}){3}|::1|\[::1\])$/i;
+
+/**
+ * Open mode (no users file) lets anyone who reaches the console control every machine. Listening
+ * beyond this computer in open mode needs `SHOPDECK_OPEN=1`; otherwise the server refuses to
+ * start. Returns whether the console is open AND on the network (the banner says so).
+ */
+export function openModeExposure(
+  host: string | boolean | undefined,
+  env: NodeJS.ProcessEnv,
+  usersFile: string,
+): boolean {
+  const loopback = host === undefined || host === false || (typeof host === 'string' && LOOPBACK.test(host));
+  if (loopback || readUsers(usersFile) !== null) return false;
+  if (env.SHOPDECK_OPEN === '1') return true;
+  throw new Error(
+    `shopdeck: open mode (no users file at ${usersFile}) on ${host === true ? 'every interface' : String(host)}: ` +
+      'anyone on the network could control the machines. Add a user first (npm run user -- add <name> --role supervisor), ' +
+      'or set SHOPDECK_OPEN=1 to serve the open console on the network anyway.',
+  );
+}
 
 export interface ShopdeckGatewayOptions {
   machinesFile?: string;
@@ -22,6 +45,10 @@ export interface ShopdeckGatewayOptions {
 export function shopdeckGateway(opts: ShopdeckGatewayOptions = {}): Plugin {
   const env = opts.env ?? process.env;
   let machines: MachinesConfig | null = null;
+  const usersFile = (e: NodeJS.ProcessEnv): string => {
+    const dataDir = dataDirPath({ dataDir: opts.dataDir, env: e, cwd: process.cwd() });
+    return usersFilePath({ usersFile: opts.usersFile, dataDir, env: e, cwd: process.cwd() });
+  };
 
   const attach = (server: ViteDevServer | PreviewServer): void => {
     machines ??= loadMachines({ machinesFile: opts.machinesFile, env });
@@ -31,7 +58,9 @@ export function shopdeckGateway(opts: ShopdeckGatewayOptions = {}): Plugin {
       cfg.allowedHosts === true
         ? true
         : [...(cfg.allowedHosts ?? []), ...(typeof cfg.host === 'string' ? [cfg.host] : [])];
-    const gw = createGateway({ ...opts, env, machines, families, allowedHosts });
+    const exposed = openModeExposure(cfg.host, env, usersFile(env));
+    const gw = createGateway({ ...opts, env, machines, families, allowedHosts, openOnNetwork: exposed });
+    server.middlewares.use(pageHeadersMiddleware(!isPreview));
     server.middlewares.use(gw.handle);
     const http = server.httpServer;
     if (http) {
@@ -46,12 +75,16 @@ export function shopdeckGateway(opts: ShopdeckGatewayOptions = {}): Plugin {
 
   return {
     name: 'shopdeck-gateway',
-    config(_config, { command }) {
+    config(config, { command, isPreview }) {
       if (command !== 'serve') return;
       // Fail early, before the server listens.
       machines = loadMachines({ machinesFile: opts.machinesFile, env });
-      const dataDir = dataDirPath({ dataDir: opts.dataDir, env, cwd: process.cwd() });
-      readUsers(usersFilePath({ usersFile: opts.usersFile, dataDir, env, cwd: process.cwd() }));
+      const file = usersFile(env);
+      readUsers(file);
+      openModeExposure(isPreview ? config.preview?.host : config.server?.host, env, file);
+      // No CORS for any origin (Vite allows localhost origins by default): the console answers
+      // its own page only.
+      return { server: { cors: false }, preview: { cors: false } };
     },
     configureServer(server) {
       attach(server);

@@ -1,6 +1,11 @@
 import http, { type IncomingMessage, type ServerResponse } from 'node:http';
 import https from 'node:https';
-import { SimDropped } from '../src/fleet/sim';
+import type { TLSSocket } from 'node:tls';
+import { pipeline, type Transform } from 'node:stream';
+import { SimDropped, splitPath } from '../src/fleet/sim';
+import { safeAnswerHeaders } from './answer-headers';
+import { createRedactor, decoderFor, redactBytes } from './redact';
+import { CertificateChanged, connectPinned, PinFileError } from './tls-pin';
 import {
   BodyTooLarge,
   clientAddress,
@@ -10,32 +15,37 @@ import {
   sendJson,
 } from './http-util';
 import { redact, type MachineEntry } from './machines';
-import { splitTarget } from './paths';
-import type { GatewayContext } from './context';
+import { splitTarget, type SplitTarget } from './paths';
+import type { GatewayContext, Verdict } from './context';
+import { crossSiteProblem } from './csrf';
+import type { AccessDecision } from '../src/fleet/access';
 
 const MAX_CLASSIFY_BODY = 1024 * 1024;
 const MAX_SIM_BODY = 64 * 1024 * 1024;
-const MAX_REDACT_BODY = 2 * 1024 * 1024;
 export const READ_METHODS = new Set(['GET', 'HEAD', 'OPTIONS']);
-const TEXTISH =
-  /^(text\/|application\/(json|xml|javascript|x-www-form-urlencoded|problem\+json)|[^;]*\+(json|xml))/i;
 
 /**
  * A redirect to the controller itself (absolute URL or absolute path) becomes the same place
  * under `/machines/<id>`, so the browser stays on the console's origin. Relative redirects
- * already resolve under `/machines/<id>`; redirects elsewhere are left alone.
+ * already resolve under `/machines/<id>`. A redirect to another origin is null: refused (it would
+ * send the browser, or its request, to a site the machines file does not name).
  */
-export function rewriteLocation(location: string, target: URL, id: string): string {
+export function rewriteLocation(
+  location: string,
+  target: URL,
+  id: string,
+  /** The controller path the redirect answers (relative redirects resolve against it). */
+  requestPath = '/',
+): string | null {
   const basePath = target.pathname.replace(/\/+$/, '');
-  const absolute = /^[a-z][a-z0-9+.-]*:/i.test(location) || location.startsWith('//');
-  if (!absolute && !location.startsWith('/')) return location;
   let u: URL;
   try {
-    u = new URL(location, target.origin);
+    // Relative redirects too: `../../other-machine/…` must not leave this machine's prefix.
+    u = new URL(location, target.origin + basePath + requestPath);
   } catch {
-    return location;
+    return null;
   }
-  if (u.origin !== target.origin) return location;
+  if (u.origin !== target.origin) return null;
   let p = u.pathname;
   if (basePath && (p === basePath || p.startsWith(`${basePath}/`))) p = p.slice(basePath.length) || '/';
   return `/machines/${encodeURIComponent(id)}${p}${u.search}${u.hash}`;
@@ -48,8 +58,9 @@ export function createHttpProxy(ctx: GatewayContext) {
     secretsOf,
     pending,
     httpAgent,
-    httpsAgent,
     record,
+    patternsFor,
+    pins,
     scrub,
     who,
     classify,
@@ -58,6 +69,35 @@ export function createHttpProxy(ctx: GatewayContext) {
   } = ctx;
 
   // ---------------------------------------------------------------- /machines (HTTP)
+
+  /** Answers a refused request and writes it to the audit log. */
+  function refuse(
+    req: IncomingMessage,
+    res: ServerResponse,
+    m: MachineEntry,
+    method: string,
+    t: SplitTarget,
+    decision: AccessDecision,
+    v: Extract<Verdict, { ok: false }>,
+  ): void {
+    const p = who(req, false).principal;
+    record({
+      type: 'refused',
+      result: 'refused',
+      machine: m.id,
+      method,
+      path: scrub(t.path + (t.rawQuery ? `?${t.rawQuery}` : '')),
+      label: decision.label,
+      address: clientAddress(req),
+      source: 'gateway',
+      user: p?.name ?? 'nobody',
+      onBehalfOf: p?.onBehalfOf,
+      role: decision.role,
+      error: String(v.body.error),
+    });
+    req.resume();
+    sendJson(res, v.status, v.body);
+  }
 
   async function proxy(
     req: IncomingMessage,
@@ -76,6 +116,18 @@ export function createHttpProxy(ctx: GatewayContext) {
     let body: Buffer | null = null;
     const needsBody = fam?.accessNeedsBody?.(method, t.path) ?? false;
     if (needsBody) {
+      // Authorize before reading a body: whatever the body says, the request needs at least
+      // this role (a body-classified request is a command: operator unless the family says).
+      const least: AccessDecision = {
+        role: needsBody === true ? 'operator' : needsBody,
+        command: true,
+        label: `${method} ${t.path}`,
+      };
+      const pre = authorize(who(req, false), m, least);
+      if (!pre.ok) {
+        refuse(req, res, m, method, t, least, pre);
+        return;
+      }
       try {
         body = await readBody(req, MAX_CLASSIFY_BODY);
       } catch (e) {
@@ -88,6 +140,19 @@ export function createHttpProxy(ctx: GatewayContext) {
     }
     const decision = classify(m, { method, path: t.path, query: t.query, body: body?.toString('utf8') });
     const isCommand = !READ_METHODS.has(method) || decision.command;
+    if (isCommand) {
+      // A GET the family marks as a command (`/cnc/data?action=stop`) needs the same proof as a
+      // POST that the console sent it (non-GET requests were checked in gateway.ts already).
+      const crossSite = crossSiteProblem(req, 'command');
+      if (crossSite) {
+        refuse(req, res, m, method, t, decision, {
+          ok: false,
+          status: 403,
+          body: { error: `refused: ${crossSite}`, crossSite: true },
+        });
+        return;
+      }
+    }
     const w = who(req, isCommand);
     const auditPath = scrub(t.path + (t.rawQuery ? `?${t.rawQuery}` : ''));
     const commandId =
@@ -134,6 +199,11 @@ export function createHttpProxy(ctx: GatewayContext) {
     };
 
     const headers = forwardRequestHeaders(req.headers);
+    if (patternsFor(m).length) {
+      // A range of an answer could cut a secret into pieces too short to recognise.
+      delete headers.range;
+      delete headers['if-range'];
+    }
     const query = new URLSearchParams(t.query);
     const before = query.toString();
     fam?.gateway?.injectSecrets?.({ method, path: t.path, headers, query }, m.secrets);
@@ -148,7 +218,7 @@ export function createHttpProxy(ctx: GatewayContext) {
       sendJson(res, 502, { error: `machine ${m.id} has no url` });
       return;
     }
-    forward(req, res, m, m.url, method, pathAndQuery, headers, body, done);
+    await forward(req, res, m, m.url, method, t.path, pathAndQuery, headers, body, done);
   }
 
   async function answerFromSimulator(
@@ -184,40 +254,108 @@ export function createHttpProxy(ctx: GatewayContext) {
       else sendJson(res, 502, { error: `simulator failed: ${e instanceof Error ? e.message : String(e)}` });
       return;
     }
-    const out: Record<string, string> = {};
+    const given: Record<string, string> = {};
     answer.headers.forEach((value, key) => {
       const k = key.toLowerCase();
-      if (
-        k !== 'set-cookie' &&
-        k !== 'content-length' &&
-        k !== 'www-authenticate' &&
-        k !== 'content-encoding'
-      )
-        out[k] = value;
+      if (k !== 'content-length' && k !== 'content-encoding') given[k] = value;
     });
-    const buf = Buffer.from(await answer.arrayBuffer());
+    // Simulated answers get the same treatment as a controller's (answer-headers.ts, redact.ts).
+    const fam = opts.families[m.kind];
+    const out = safeAnswerHeaders(given, {
+      image: fam?.gateway?.imageAnswer?.(splitPath(pathAndQuery).pathname) ?? false,
+    });
+    const patterns = patternsFor(m);
+    const raw = Buffer.from(await answer.arrayBuffer());
+    const buf = patterns.length ? redactBytes(raw, patterns) : raw;
     res.writeHead(answer.status, { ...out, 'Content-Length': String(buf.length) });
     res.end(method === 'HEAD' ? undefined : buf);
     done({ status: answer.status });
   }
 
-  function forward(
+  /** Words for a failed upstream request, without the controller's address (viewers read them). */
+  function upstreamWords(m: MachineEntry, e: Error & { code?: string }, timedOut: boolean): string {
+    if (timedOut)
+      return `${m.name} did not answer within ${timeoutMs < 1000 ? `${timeoutMs} ms` : `${Math.round(timeoutMs / 1000)} s`}`;
+    if (e instanceof CertificateChanged) return e.message;
+    if (e instanceof PinFileError) return e.message;
+    switch (e.code) {
+      case 'ECONNREFUSED':
+        return `${m.name} refused the connection (is the controller on and its web server running?)`;
+      case 'EHOSTUNREACH':
+      case 'ENETUNREACH':
+      case 'ETIMEDOUT':
+        return `${m.name} cannot be reached on the network`;
+      case 'ENOTFOUND':
+      case 'EAI_AGAIN':
+        return `the address of ${m.name} cannot be resolved`;
+      case 'ECONNRESET':
+      case 'EPIPE':
+        return `${m.name} closed the connection`;
+      default:
+        return `cannot reach ${m.name}`;
+    }
+  }
+
+  /** The gateway's own failure (not the controller's answer): marked so the page can tell. */
+  function gatewayError(res: ServerResponse, status: number, error: string): void {
+    sendJson(res, status, { error, gateway: true }, { 'X-Shopdeck-Gateway': 'error' });
+  }
+
+  async function forward(
     req: IncomingMessage,
     res: ServerResponse,
     m: MachineEntry,
     target: URL,
     method: string,
+    path: string,
     pathAndQuery: string,
     headers: Record<string, string>,
     body: Buffer | null,
     done: (r: { status?: number; error?: string }) => void,
-  ): void {
+  ): Promise<void> {
     const isHttps = target.protocol === 'https:';
     const basePath = target.pathname.replace(/\/+$/, '');
     const forms = secretsOf.get(m.id) ?? [];
+    const patterns = patternsFor(m);
+    const fam = opts.families[m.kind];
     if (body) headers['content-length'] = String(body.length);
     else if (req.headers['content-length']) headers['content-length'] = req.headers['content-length'];
     else if (req.headers['transfer-encoding']) headers['transfer-encoding'] = 'chunked';
+    let tlsSocket: TLSSocket | null = null;
+    if (isHttps) {
+      // The controller's certificate is checked (configured fingerprint or trust on first use)
+      // before one byte of the request, and so before any secret, is written (tls-pin.ts).
+      try {
+        tlsSocket = await connectPinned({
+          machine: m,
+          url: target,
+          store: pins,
+          timeoutMs,
+          onTrust: (r) =>
+            record({
+              type: 'tls-trust',
+              result: 'ok',
+              user: 'gateway',
+              source: 'gateway',
+              machine: m.id,
+              detail: `trusted the certificate ${r.fingerprint} on first use`,
+            }),
+        });
+      } catch (e) {
+        const err = e instanceof Error ? e : new Error(String(e));
+        const words = upstreamWords(m, err, false);
+        console.error(`shopdeck: ${m.id}: ${redact(err.message, forms)}`);
+        req.resume();
+        done({ error: words });
+        gatewayError(res, 502, words);
+        return;
+      }
+      if (res.destroyed) {
+        tlsSocket.destroy();
+        return;
+      }
+    }
+    const socket = tlsSocket;
     const upstream = (isHttps ? https : http).request({
       protocol: target.protocol,
       hostname: target.hostname.replace(/^\[|\]$/g, ''),
@@ -225,7 +363,7 @@ export function createHttpProxy(ctx: GatewayContext) {
       method,
       path: basePath + pathAndQuery,
       headers: { ...headers, host: target.host },
-      agent: isHttps ? httpsAgent : httpAgent,
+      ...(socket ? { createConnection: () => socket } : { agent: httpAgent }),
     });
     pending.add(upstream);
     let timedOut = false;
@@ -240,76 +378,65 @@ export function createHttpProxy(ctx: GatewayContext) {
       timedOut = true;
       upstream.destroy(new Error(`the controller did not answer within ${timeoutMs} ms`));
     });
-    upstream.on('error', (e) => {
-      const msg = redact(e.message, forms);
-      finish({ error: msg });
-      if (!res.headersSent) {
-        sendJson(res, timedOut ? 504 : 502, {
-          error: timedOut ? `timeout: ${msg}` : `cannot reach the controller of ${m.id}: ${msg}`,
-        });
-      } else {
-        res.destroy();
-      }
+    upstream.on('error', (e: Error & { code?: string }) => {
+      const words = upstreamWords(m, e, timedOut);
+      console.error(`shopdeck: ${m.id}: ${redact(e.message, forms)}`);
+      finish({ error: words });
+      if (!res.headersSent) gatewayError(res, timedOut ? 504 : 502, words);
+      else res.destroy();
     });
     res.on('close', () => {
       if (!res.writableFinished) upstream.destroy();
     });
     upstream.on('response', (up) => {
       const status = up.statusCode ?? 502;
-      const outHeaders = forwardResponseHeaders(up.headers);
-      for (const [k, v] of Object.entries(outHeaders)) {
-        outHeaders[k] = Array.isArray(v) ? v.map((x) => redact(x, forms)) : redact(v, forms);
+      const given = forwardResponseHeaders(up.headers);
+      for (const [k, v] of Object.entries(given)) {
+        given[k] = Array.isArray(v) ? v.map((x) => redact(x, forms)) : redact(v, forms);
       }
-      const location = outHeaders.location;
-      if (typeof location === 'string') outHeaders.location = rewriteLocation(location, target, m.id);
-      const type = String(up.headers['content-type'] ?? '');
-      const encoded = up.headers['content-encoding'] && up.headers['content-encoding'] !== 'identity';
-      const length = Number(up.headers['content-length'] ?? NaN);
-      const check =
-        forms.length > 0 && !encoded && (type === '' || TEXTISH.test(type)) && !(length > MAX_REDACT_BODY);
-      if (!check) {
-        res.writeHead(
-          status,
-          up.headers['content-length']
-            ? { ...outHeaders, 'content-length': up.headers['content-length'] }
-            : outHeaders,
-        );
-        up.pipe(res);
-        up.on('end', () => finish({ status }));
-        up.on('error', (e) => finish({ status, error: redact(e.message, forms) }));
+      const location = given.location;
+      if (typeof location === 'string') {
+        const rewritten = rewriteLocation(location, target, m.id, pathAndQuery);
+        if (rewritten === null) {
+          // A redirect away from the controller would take the browser (or its credentials)
+          // to another site: refused.
+          up.resume();
+          upstream.destroy();
+          finish({ status: 502, error: 'the controller redirected to another site' });
+          gatewayError(res, 502, `${m.name} answered with a redirect to another site: refused`);
+          return;
+        }
+        given.location = rewritten;
+      }
+      const out = safeAnswerHeaders(given, { image: fam?.gateway?.imageAnswer?.(path) ?? false });
+      const decoder = decoderFor(up.headers['content-encoding']);
+      if (decoder === 'refuse') {
+        up.resume();
+        upstream.destroy();
+        finish({ status: 502, error: 'an answer encoded in a way the gateway cannot check' });
+        gatewayError(res, 502, `${m.name} sent an answer the gateway cannot check (Content-Encoding)`);
         return;
       }
-      const chunks: Buffer[] = [];
-      let size = 0;
-      let streaming = false;
-      up.on('data', (c: Buffer) => {
-        if (streaming) return;
-        size += c.length;
-        chunks.push(c);
-        if (size > MAX_REDACT_BODY) {
-          // Too big to check: send what we have (checked) and stream the rest as is.
-          streaming = true;
-          up.pause();
-          res.writeHead(status, outHeaders);
-          res.write(redact(Buffer.concat(chunks).toString('utf8'), forms));
-          up.pipe(res);
-          up.resume();
-        }
-      });
-      up.on('end', () => {
-        if (!streaming) {
-          const text = Buffer.concat(chunks);
-          const clean = Buffer.from(redact(text.toString('utf8'), forms), 'utf8');
-          const same = clean.length === text.length && clean.equals(text);
-          res.writeHead(status, {
-            ...outHeaders,
-            'content-length': String(same ? text.length : clean.length),
-          });
-          res.end(same ? text : clean);
-        }
+      // Every byte passes the redactor (any type, any size, decoded first); its length may change.
+      const stages: Transform[] = [];
+      if (decoder) stages.push(decoder);
+      if (patterns.length) stages.push(createRedactor(patterns));
+      if (stages.length) delete out['content-length'];
+      res.writeHead(status, out);
+      if (method === 'HEAD') {
+        up.resume();
+        res.end();
         finish({ status });
+        return;
+      }
+      // A cut answer (the controller's connection breaks midway) ends the browser's response
+      // at once, as an error, never as a complete answer and never left open.
+      pipeline([up, ...stages, res], (err) => {
+        if (err) {
+          res.destroy();
+          finish({ status, error: `the answer was cut: ${redact(err.message, forms)}` });
+        } else finish({ status });
       });
-      up.on('error', (e) => finish({ status, error: redact(e.message, forms) }));
     });
     if (body) upstream.end(body);
     else if (method === 'GET' || method === 'HEAD') {

@@ -1,7 +1,15 @@
+import type { TLSSocket } from 'node:tls';
+import { CertificateChanged, connectPinned, PinFileError } from './tls-pin';
 import { type IncomingMessage } from 'node:http';
 import type { Duplex } from 'node:stream';
 import { WebSocket, WebSocketServer, type RawData } from 'ws';
-import { clientAddress, forwardRequestHeaders, rejectUpgrade, sameOrigin } from './http-util';
+import type { AccessDecision } from '../src/fleet/access';
+import type { Who } from './context';
+import type { MachineEntry } from './machines';
+import { redactFrame } from './redact';
+import { bridgeSockets, DEFAULT_BRIDGE_LIMITS } from './ws-bridge';
+import { crossSiteProblem } from './csrf';
+import { clientAddress, forwardRequestHeaders, rejectUpgrade } from './http-util';
 import { redact } from './machines';
 import { splitTarget } from './paths';
 import { bridgeSimSocket } from './sim-server';
@@ -22,37 +30,42 @@ export function createWsProxy(ctx: GatewayContext) {
     authorize,
     simulatorFor,
     state,
+    liveSockets,
+    patternsFor,
+    pins,
   } = ctx;
 
   // ---------------------------------------------------------------- /machines (WebSocket)
 
-  function bridge(client: WebSocket, upstream: WebSocket): void {
+  /**
+   * Bridges an accepted browser socket to the controller's, with bounds (ws-bridge.ts), every
+   * controller frame redacted, and the socket registered so that it closes when its user logs
+   * out, expires, is removed or loses the role or machine (context.ts `revalidateSockets`).
+   */
+  function bridge(
+    client: WebSocket,
+    upstream: WebSocket,
+    m: MachineEntry,
+    w: Who,
+    decision: AccessDecision,
+  ): void {
     openSockets.add(client);
     openSockets.add(upstream);
-    const closeCode = (code: number): number | undefined =>
-      (code >= 1000 && code <= 1003) || (code >= 1007 && code <= 1014) || (code >= 3000 && code <= 4999)
-        ? code
-        : undefined;
-    const pass = (from: WebSocket, to: WebSocket) => {
-      from.on('message', (data: RawData, isBinary: boolean) => {
-        if (to.readyState === WebSocket.OPEN) to.send(data, { binary: isBinary });
-      });
-      from.on('close', (code: number, reason: Buffer) => {
-        openSockets.delete(from);
-        if (to.readyState === WebSocket.OPEN || to.readyState === WebSocket.CONNECTING) {
-          const c = closeCode(code);
-          if (code === 1006) to.terminate();
-          else if (c === undefined) to.close();
-          else to.close(c, reason.toString('utf8').slice(0, 120));
-        }
-      });
-      from.on('error', () => {
-        openSockets.delete(from);
-        to.terminate();
-      });
-    };
-    pass(client, upstream);
-    pass(upstream, client);
+    const patterns = patternsFor(m);
+    const b = bridgeSockets(client, upstream, {
+      toClient: patterns.length ? (data, isBinary) => redactFrame(data, isBinary, patterns) : undefined,
+      onClose: () => {
+        openSockets.delete(client);
+        openSockets.delete(upstream);
+        liveSockets.delete(client);
+      },
+    });
+    liveSockets.set(client, {
+      machine: m.id,
+      token: w.session?.token ?? null,
+      needs: decision.role,
+      close: (code, reason) => b.close(code, reason),
+    });
   }
 
   async function upgradeMachine(
@@ -66,7 +79,21 @@ export function createWsProxy(ctx: GatewayContext) {
     const address = clientAddress(req);
     if (state.closed) return rejectUpgrade(socket, 503, { error: 'the gateway is shutting down' });
     if (!hostAllowed(req)) return rejectUpgrade(socket, 403, { error: 'this host name is not allowed' });
-    if (!sameOrigin(req)) return rejectUpgrade(socket, 403, { error: 'cross-site WebSocket refused' });
+    const crossSite = crossSiteProblem(req, 'websocket');
+    if (crossSite) {
+      record({
+        type: 'refused',
+        result: 'refused',
+        user: who(req, false).principal?.name ?? 'nobody',
+        source: 'gateway',
+        method: 'WS',
+        machine: byId.has(id) ? id : undefined,
+        path: scrub(rest.slice(0, 300)),
+        address,
+        error: crossSite,
+      });
+      return rejectUpgrade(socket, 403, { error: `refused: ${crossSite}`, crossSite: true });
+    }
     const m = byId.get(id);
     if (!m) return rejectUpgrade(socket, 404, { error: `no machine "${id}" in the machines file` });
     const t = splitTarget(rest || '/');
@@ -117,13 +144,25 @@ export function createWsProxy(ctx: GatewayContext) {
     if (m.simulated) {
       const sim = simulatorFor(m);
       if (!sim) return rejectUpgrade(socket, 503, { error: `no simulator for ${m.kind}` });
-      const wss = new WebSocketServer({ noServer: true, clientTracking: false, perMessageDeflate: false });
+      const wss = new WebSocketServer({
+        noServer: true,
+        clientTracking: false,
+        perMessageDeflate: false,
+        maxPayload: DEFAULT_BRIDGE_LIMITS.maxClientFrame,
+      });
       wss.handleUpgrade(req, socket, head, (client) => {
         openSockets.add(client);
         audited({ status: 101 });
-        bridgeSimSocket(client, sim, t.path + (t.rawQuery ? `?${t.rawQuery}` : ''), () =>
-          openSockets.delete(client),
-        );
+        liveSockets.set(client, {
+          machine: m.id,
+          token: w.session?.token ?? null,
+          needs: decision.role,
+          close: (code, reason) => client.close(code, reason),
+        });
+        bridgeSimSocket(client, sim, t.path + (t.rawQuery ? `?${t.rawQuery}` : ''), () => {
+          openSockets.delete(client);
+          liveSockets.delete(client);
+        });
       });
       return;
     }
@@ -145,16 +184,34 @@ export function createWsProxy(ctx: GatewayContext) {
     const qs = query.toString() === before ? t.rawQuery : query.toString();
     const target = baseUrl + t.path + (qs ? `?${qs}` : '');
     const forms = secretsOf.get(m.id) ?? [];
+    let tlsSocket: TLSSocket | null = null;
+    if (target.startsWith('wss:')) {
+      // The certificate is checked before the handshake (and any secret in it) is sent.
+      try {
+        tlsSocket = await connectPinned({ machine: m, url: new URL(target), store: pins, timeoutMs });
+      } catch (e) {
+        const msg =
+          e instanceof CertificateChanged || e instanceof PinFileError ? e.message : `cannot reach ${m.name}`;
+        audited({ error: msg });
+        return rejectUpgrade(socket, 502, { error: msg, gateway: true });
+      }
+    }
+    const pinned = tlsSocket;
     const upstream = new WebSocket(target, offered, {
       headers,
-      rejectUnauthorized: false,
+      ...(pinned ? { createConnection: () => pinned } : {}),
       handshakeTimeout: timeoutMs,
       perMessageDeflate: false,
       followRedirects: false,
+      maxPayload: DEFAULT_BRIDGE_LIMITS.maxUpstreamFrame,
     });
     openSockets.add(upstream);
     const early: Array<{ data: RawData; isBinary: boolean }> = [];
+    // Frames that arrive before the browser's socket is accepted: bounded like the rest.
+    let earlyBytes = 0;
     const collect = (data: RawData, isBinary: boolean): void => {
+      earlyBytes += Array.isArray(data) ? data.reduce((n, d) => n + d.length, 0) : data.byteLength;
+      if (earlyBytes > DEFAULT_BRIDGE_LIMITS.highWaterBytes) upstream.pause();
       early.push({ data, isBinary });
     };
     upstream.on('message', collect);
@@ -170,17 +227,26 @@ export function createWsProxy(ctx: GatewayContext) {
       resp.resume();
       upstream.terminate();
     });
-    upstream.once('error', (e) => {
-      if (upstream.readyState !== WebSocket.OPEN) {
+    let opened = false;
+    let earlyClose: { code: number; reason: string } | null = null;
+    upstream.once('close', (code: number, reason: Buffer) => {
+      earlyClose = { code, reason: reason.toString('utf8').slice(0, 120) };
+    });
+    upstream.on('error', (e) => {
+      // After the handshake, errors are the bridge's business (it closes both sides): never
+      // write an HTTP answer on a socket that may already be upgraded.
+      if (!opened && upstream.readyState !== WebSocket.OPEN) {
         const timeout = /timed out|timeout/i.test(e.message);
         fail(timeout ? 504 : 502, `cannot open the controller's WebSocket: ${e.message}`);
       }
     });
     upstream.once('open', () => {
+      opened = true;
       const wss = new WebSocketServer({
         noServer: true,
         clientTracking: false,
         perMessageDeflate: false,
+        maxPayload: DEFAULT_BRIDGE_LIMITS.maxClientFrame,
         handleProtocols: () => upstream.protocol || false,
       });
       if (socket.destroyed) {
@@ -190,8 +256,19 @@ export function createWsProxy(ctx: GatewayContext) {
       wss.handleUpgrade(req, socket, head, (client) => {
         audited({ status: 101 });
         upstream.off('message', collect);
-        for (const e of early) client.send(e.data, { binary: e.isBinary });
-        bridge(client, upstream);
+        const patterns = patternsFor(m);
+        for (const e of early)
+          client.send(patterns.length ? redactFrame(e.data, e.isBinary, patterns) : e.data, {
+            binary: e.isBinary,
+          });
+        if (upstream.readyState !== WebSocket.OPEN) {
+          // The controller closed (or broke the frame bound) before the browser was accepted.
+          const c = earlyClose?.code ?? 1011;
+          client.close(c === 1006 || c === 1005 ? 1011 : c, earlyClose?.reason ?? 'the controller closed');
+          return;
+        }
+        bridge(client, upstream, m, w, decision);
+        upstream.resume();
       });
     });
   }

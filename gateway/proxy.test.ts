@@ -5,7 +5,16 @@ import type { AddressInfo } from 'node:net';
 import path from 'node:path';
 import { afterEach, describe, expect, it } from 'vitest';
 import type { AuditEntry } from './audit';
-import { openWs, startGateway, startStub, tempDir, testFamily, type Running, type Stub } from './test-util';
+import {
+  openWs,
+  startGateway,
+  startStub,
+  tempDir,
+  testFamily,
+  type Running,
+  type Stub,
+  consoleFetch,
+} from './test-util';
 import type { MachineEntry } from './machines';
 
 const cleanups: Array<() => Promise<void> | void> = [];
@@ -58,21 +67,21 @@ describe('proxy /machines/<id>/…', () => {
   it('answers 404 with JSON for an id that is not in the file, over HTTP and WebSocket', async () => {
     const s = await stub();
     const gw = await setup([entry('laser-1', s.url)]);
-    const r = await fetch(`${gw.url}/machines/laser-2/status`);
+    const r = await consoleFetch(`${gw.url}/machines/laser-2/status`);
     expect(r.status).toBe(404);
     expect(await r.json()).toEqual({ error: 'no machine "laser-2" in the machines file' });
     await expect(openWs(`ws://${gw.host}/machines/laser-2/`)).rejects.toMatchObject({ status: 404 });
     // A malformed id (bad percent-encoding) is just unknown, for HTTP and sockets alike.
-    expect((await fetch(`${gw.url}/machines/%E0%A4%A/status`)).status).toBe(404);
+    expect((await consoleFetch(`${gw.url}/machines/%E0%A4%A/status`)).status).toBe(404);
     await expect(openWs(`ws://${gw.host}/machines/%E0%A4%A/`)).rejects.toMatchObject({ status: 404 });
-    expect((await fetch(`${gw.url}/machines/laser-1/status`)).status).toBe(200);
+    expect((await consoleFetch(`${gw.url}/machines/laser-1/status`)).status).toBe(200);
     expect(s.seen).toHaveLength(1);
   });
 
   it('forwards method, path, query and body; strips cookies, X-Shopdeck-* and hop-by-hop headers both ways', async () => {
     const s = await stub();
     const gw = await setup([entry('p1', s.url)]);
-    const r = await fetch(`${gw.url}/machines/p1/settings?x=1&y=a%20b`, {
+    const r = await consoleFetch(`${gw.url}/machines/p1/settings?x=1&y=a%20b`, {
       method: 'POST',
       headers: {
         Cookie: 'shopdeck_session=secret-session',
@@ -98,7 +107,7 @@ describe('proxy /machines/<id>/…', () => {
   it('never leaves the configured host, whatever the path looks like', async () => {
     const s = await stub();
     const gw = await setup([entry('p1', s.url)]);
-    // A raw request line: fetch() would normalize these paths itself.
+    // A raw request line: consoleFetch() would normalize these paths itself.
     for (const raw of [
       '/machines/p1//evil.example/x',
       '/machines/p1/../../api/x',
@@ -123,7 +132,7 @@ describe('proxy /machines/<id>/…', () => {
   it('classifies the canonical path, so an encoded path cannot dodge a rule', async () => {
     const s = await stub();
     const gw = await setup([entry('p1', s.url)]);
-    await fetch(`${gw.url}/machines/p1/%6Aob?action=stop`, {
+    await consoleFetch(`${gw.url}/machines/p1/%6Aob?action=stop`, {
       headers: { 'X-Shopdeck-Command': 'test.stop' },
     });
     expect(s.seen[0]?.url).toBe('/job?action=stop');
@@ -139,7 +148,7 @@ describe('proxy /machines/<id>/…', () => {
       result: 'ok',
       user: 'anonymous',
     });
-    const dup = await fetch(`${gw.url}/machines/p1/job?action=status&action=stop`);
+    const dup = await consoleFetch(`${gw.url}/machines/p1/job?action=status&action=stop`);
     expect(dup.status).toBe(400);
     expect(s.seen).toHaveLength(1);
   });
@@ -151,11 +160,11 @@ describe('proxy /machines/<id>/…', () => {
       res.end('{}');
     };
     const gw = await setup([entry('p1', s.url)]);
-    await fetch(`${gw.url}/machines/p1/status`);
-    await fetch(`${gw.url}/machines/p1/job?action=pause`, {
+    await consoleFetch(`${gw.url}/machines/p1/status`);
+    await consoleFetch(`${gw.url}/machines/p1/job?action=pause`, {
       headers: { 'X-Shopdeck-Command': 'test.pause' },
     });
-    await fetch(`${gw.url}/machines/p1/settings`, {
+    await consoleFetch(`${gw.url}/machines/p1/settings`, {
       method: 'POST',
       body: 'x=1',
       headers: { 'X-Shopdeck-Command': 'test.save' },
@@ -165,7 +174,7 @@ describe('proxy /machines/<id>/…', () => {
       ['test.pause', '/job?action=pause', 200, 'ok'],
       ['test.save', '/settings', 409, 'error'],
     ]);
-    const api = (await (await fetch(`${gw.url}/api/audit?limit=1`)).json()) as {
+    const api = (await (await consoleFetch(`${gw.url}/api/audit?limit=1`)).json()) as {
       entries: AuditEntry[];
       total: number;
     };
@@ -177,7 +186,7 @@ describe('proxy /machines/<id>/…', () => {
     const s = await stub();
     s.respond = () => undefined; // never answers
     const gw = await setup([entry('p1', s.url)], { timeoutMs: 200 });
-    const r = await fetch(`${gw.url}/machines/p1/settings`, { method: 'POST', body: '1' });
+    const r = await consoleFetch(`${gw.url}/machines/p1/settings`, { method: 'POST', body: '1' });
     expect(r.status).toBe(504);
     expect(((await r.json()) as { error: string }).error).toMatch(/did not answer within 200 ms/);
     expect(auditOf(gw)[0]).toMatchObject({ result: 'error', machine: 'p1' });
@@ -189,9 +198,14 @@ describe('proxy /machines/<id>/…', () => {
     const port = (closed.address() as AddressInfo).port;
     await new Promise<void>((r) => closed.close(() => r()));
     const gw = await setup([entry('p1', `http://127.0.0.1:${port}`)]);
-    const r = await fetch(`${gw.url}/machines/p1/status`);
+    const r = await consoleFetch(`${gw.url}/machines/p1/status`);
     expect(r.status).toBe(502);
-    expect(((await r.json()) as { error: string }).error).toMatch(/cannot reach the controller of p1/);
+    const error = ((await r.json()) as { error: string }).error;
+    expect(error).toMatch(/p1 refused the connection/);
+    // Words for the operator, never the controller's address; marked as the gateway's own error.
+    expect(error).not.toContain('127.0.0.1');
+    expect(error).not.toContain(String(port));
+    expect(r.headers.get('x-shopdeck-gateway')).toBe('error');
   });
 
   it('reaches a controller with a self-signed HTTPS certificate', async () => {
@@ -221,10 +235,10 @@ describe('proxy /machines/<id>/…', () => {
     const s = await startStub({ key: readFileSync(key, 'utf8'), cert: readFileSync(cert, 'utf8') });
     cleanups.push(s.close);
     // Node's own fetch refuses it: the certificate is really self-signed.
-    await expect(fetch(`${s.url}/status`)).rejects.toThrow();
+    await expect(consoleFetch(`${s.url}/status`)).rejects.toThrow();
     const gw = await setup([entry('plasma', s.url)]);
-    const r = await fetch(`${gw.url}/machines/plasma/status`);
-    expect(r.status).toBe(200);
+    const r = await consoleFetch(`${gw.url}/machines/plasma/status`);
+    expect(r.status, await r.clone().text()).toBe(200);
     expect(await r.json()).toEqual({ ok: true, path: '/status' });
     const w = await openWs(`ws://${gw.host}/machines/plasma/live`);
     expect(w.first).toBe('hello');
@@ -260,13 +274,13 @@ describe('proxy /machines/<id>/…', () => {
     };
     const secrets = { apiKey: '13F513776F764DA5B5F0', password: 'hunter2hunter2' };
     const gw = await setup([entry('cut', s.url, { secrets })]);
-    const list = await (await fetch(`${gw.url}/api/machines`)).text();
+    const list = await (await consoleFetch(`${gw.url}/api/machines`)).text();
     expect(JSON.parse(list)).toEqual({
       machines: [{ id: 'cut', name: 'cut', kind: 'prunt', simulated: false }],
       demo: false,
     });
     expect(list).not.toContain(secrets.apiKey);
-    const r = await fetch(`${gw.url}/machines/cut/login`);
+    const r = await consoleFetch(`${gw.url}/machines/cut/login`);
     const text = await r.text();
     expect(s.seen[0]?.headers['x-api-key']).toBe(secrets.apiKey);
     expect(s.seen[0]?.url).toBe(`/login?password=${secrets.password}`);
@@ -278,7 +292,7 @@ describe('proxy /machines/<id>/…', () => {
 
   it('answers simulated machines from an in-process simulator, with access rules and audit', async () => {
     const gw = await setup([entry('demo', null, { simulated: true })]);
-    const r = await fetch(`${gw.url}/machines/demo/job?action=pause`, {
+    const r = await consoleFetch(`${gw.url}/machines/demo/job?action=pause`, {
       headers: { 'X-Shopdeck-Command': 'test.pause' },
     });
     expect(await r.json()).toMatchObject({ sim: 'demo', path: '/job', action: 'pause' });
@@ -294,7 +308,7 @@ describe('proxy /machines/<id>/…', () => {
     const s = await stub();
     const gw = await setup([entry('demo', null, { simulated: true }), entry('real', s.url)]);
     const post = (machine: string) =>
-      fetch(`${gw.url}/api/audit/client`, {
+      consoleFetch(`${gw.url}/api/audit/client`, {
         method: 'POST',
         headers: { 'Content-Type': 'application/json' },
         body: JSON.stringify({
@@ -332,6 +346,7 @@ describe('proxy /machines/<id>/…', () => {
           headers: upgrade
             ? {
                 Host: host,
+                Origin: `http://${host}`,
                 Connection: 'Upgrade',
                 Upgrade: 'websocket',
                 'Sec-WebSocket-Version': '13',
@@ -372,11 +387,15 @@ describe('proxy /machines/<id>/…', () => {
     };
     const gw = await setup([entry('p1', `${s.url}/base`)]);
     const loc = async (p: string) =>
-      (await fetch(`${gw.url}/machines/p1${p}`, { redirect: 'manual' })).headers.get('location');
+      (await consoleFetch(`${gw.url}/machines/p1${p}`, { redirect: 'manual' })).headers.get('location');
     expect(await loc('/a')).toBe('/machines/p1/next?x=1');
     expect(await loc('/b')).toBe('/machines/p1/abs');
-    expect(await loc('/c')).toBe('relative/page');
-    expect(await loc('/d')).toBe('http://elsewhere.example/x');
+    // Relative redirects resolve on the controller, so they cannot climb to another machine.
+    expect(await loc('/c')).toBe('/machines/p1/relative/page');
+    // A redirect to another site is refused (502 from the gateway, no Location).
+    const away = await consoleFetch(`${gw.url}/machines/p1/d`, { redirect: 'manual' });
+    expect(away.status).toBe(502);
+    expect(away.headers.get('location')).toBeNull();
     expect(s.seen.map((x) => x.url)).toEqual(['/base/a', '/base/b', '/base/c', '/base/d']);
   });
 });

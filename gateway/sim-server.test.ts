@@ -1,6 +1,6 @@
 import { afterEach, describe, expect, it } from 'vitest';
 import { startSimFleet, startSimServer } from './sim-server';
-import { openWs, startGateway, tempDir, testFamily } from './test-util';
+import { openWs, startGateway, tempDir, testFamily, consoleFetch } from './test-util';
 import { parseMachines } from './machines';
 
 const cleanups: Array<() => Promise<void> | void> = [];
@@ -20,23 +20,26 @@ describe('simulator server', () => {
       simulator: { ...base, controls: () => [{ id: 'button', label: 'Button', run: () => pressed++ }] },
     });
     cleanups.push(s.close);
-    expect(await (await fetch(`${s.url}/job?action=pause`)).json()).toMatchObject({
+    expect(await (await consoleFetch(`${s.url}/job?action=pause`)).json()).toMatchObject({
       path: '/job',
       action: 'pause',
     });
-    expect((await fetch(`${s.url}/missing`)).status).toBe(404);
+    expect((await consoleFetch(`${s.url}/missing`)).status).toBe(404);
 
     const post = (p: string, body?: unknown) =>
-      fetch(`${s.url}${p}`, { method: 'POST', body: body === undefined ? undefined : JSON.stringify(body) });
+      consoleFetch(`${s.url}${p}`, {
+        method: 'POST',
+        body: body === undefined ? undefined : JSON.stringify(body),
+      });
     expect(await (await post('/__sim/faults', { http5xx: true })).json()).toMatchObject({
       faults: { http5xx: true },
     });
-    expect((await fetch(`${s.url}/status`)).status).toBe(503);
+    expect((await consoleFetch(`${s.url}/status`)).status).toBe(503);
     await post('/__sim/faults', { http5xx: false, malformed: true });
-    const text = await (await fetch(`${s.url}/status`)).text();
+    const text = await (await consoleFetch(`${s.url}/status`)).text();
     expect(() => JSON.parse(text) as unknown).toThrow();
     await post('/__sim/faults', { malformed: false, drop: true });
-    await expect(fetch(`${s.url}/status`)).rejects.toThrow();
+    await expect(consoleFetch(`${s.url}/status`)).rejects.toThrow();
     await post('/__sim/faults', { drop: false });
 
     const w = await openWs(s.url.replace('http', 'ws') + '/live');
@@ -69,7 +72,7 @@ describe('simulator server', () => {
       env: {},
     });
     cleanups.push(gw.close);
-    expect(await (await fetch(`${gw.url}/machines/sim-xtool/job?action=stop`)).json()).toMatchObject({
+    expect(await (await consoleFetch(`${gw.url}/machines/sim-xtool/job?action=stop`)).json()).toMatchObject({
       sim: 'sim-xtool',
       action: 'stop',
     });

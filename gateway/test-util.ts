@@ -118,13 +118,25 @@ export async function startGateway(opts: GatewayOptions): Promise<Running> {
   };
 }
 
+/**
+ * `fetch` as the console's own page sends it: with the `X-Shopdeck: 1` header that proves a
+ * request comes from the console (csrf.ts). Attack tests use plain `fetch` instead.
+ */
+export function consoleFetch(url: string | URL, init: RequestInit = {}): Promise<Response> {
+  const headers = new Headers(init.headers);
+  if (!headers.has('x-shopdeck')) headers.set('X-Shopdeck', '1');
+  return fetch(url, { ...init, headers });
+}
+
 /** Opens a WebSocket; resolves with the socket and its first message, or rejects with the HTTP status. */
 export function openWs(
   url: string,
   headers: Record<string, string> = {},
 ): Promise<{ ws: WebSocket; first: string; next(): Promise<string>; close(): Promise<void> }> {
   return new Promise((resolve, reject) => {
-    const ws = new WebSocket(url, { headers });
+    // As a browser does: the page's origin (the gateway's own host) unless the test says otherwise.
+    const origin = new URL(url.replace(/^ws/, 'http')).origin;
+    const ws = new WebSocket(url, { headers: { Origin: origin, ...headers } });
     const queue: string[] = [];
     const waiters: Array<(s: string) => void> = [];
     ws.on('message', (d) => {
@@ -191,7 +203,7 @@ export function user(
 
 /** Logs in; returns the cookie header to send. */
 export async function login(base: string, name: string, password: string): Promise<string> {
-  const r = await fetch(`${base}/api/login`, {
+  const r = await consoleFetch(`${base}/api/login`, {
     method: 'POST',
     headers: { 'Content-Type': 'application/json' },
     body: JSON.stringify({ name, password }),

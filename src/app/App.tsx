@@ -35,6 +35,7 @@ export function App() {
   const [theme, setTheme] = useTheme();
   const mode = useStore(authStore, (s) => s.mode);
   const user = useStore(authStore, (s) => s.user);
+  const openOnNetwork = useStore(authStore, (s) => s.openOnNetwork === true);
   const machines = useStore(fleetStore, (s) => s.machines);
   const anySimulated = machines.some((m) => m.simulated);
   const familyPages = Object.values(controllers).flatMap((m) =>
@@ -107,8 +108,9 @@ export function App() {
       </header>
       {mode === 'open' && (
         <div className="open-banner" role="note" data-testid="open-mode-banner">
-          Open mode: anyone on this network can control these machines. Add users to require a login (see the
-          README).
+          {openOnNetwork
+            ? 'Open mode on the network (SHOPDECK_OPEN=1): anyone who can reach this computer can control these machines. Add users to require a login (see the README).'
+            : 'Open mode: no login is needed, and the console only answers on this computer. Add users before serving it to tablets (see the README).'}
         </div>
       )}
       {anySimulated && demoState.mode === 'none' && demoState.error && (

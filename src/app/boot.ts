@@ -4,6 +4,7 @@ import { authStore } from '../fleet/auth';
 import { commandHistory } from '../fleet/commands';
 import { createRuntime, fleetStore, getRuntime, registerRuntime, allRuntimes } from '../fleet/fleet';
 import { MACHINE_KINDS, type MachineInfo } from '../fleet/types';
+import { CONSOLE_HEADERS } from '../fleet/origin';
 import { fetchSession, trackActivity } from './auth/api';
 import { simulatorFor, startDemo } from './demo';
 
@@ -41,7 +42,7 @@ export async function boot(): Promise<void> {
   let machines: MachineInfo[];
   let builtInDemo = false;
   try {
-    const r = await fetch('/api/machines', { credentials: 'same-origin' });
+    const r = await fetch('/api/machines', { credentials: 'same-origin', headers: CONSOLE_HEADERS });
     if (r.status === 401) {
       fleetStore.setState({ status: 'ready', machines: [], error: null });
       return;
@@ -97,7 +98,7 @@ export async function boot(): Promise<void> {
       if (!simulatedIds.has(rec.machineId)) continue;
       void fetch('/api/audit/client', {
         method: 'POST',
-        headers: { 'Content-Type': 'application/json' },
+        headers: { 'Content-Type': 'application/json', ...CONSOLE_HEADERS },
         credentials: 'same-origin',
         body: JSON.stringify({
           machine: rec.machineId,

@@ -9,6 +9,8 @@ import type { Role } from './types';
 export interface AuthState {
   /** open: no users file, anyone on the network can control the machines. */
   mode: 'open' | 'secured' | 'unknown';
+  /** Open mode served to the network on purpose (SHOPDECK_OPEN=1). */
+  openOnNetwork?: boolean;
   user: { name: string; role: Role; machines: string[] | null } | null;
 }
 

@@ -37,6 +37,11 @@ export interface GatewayHints {
   /** WebSocket port on the controller's host when the machine has no `wsUrl` (xTool: 8081). */
   defaultWsPort?: number;
   /**
+   * Answers the console shows as images (thumbnails, screenshots, help pictures): only these keep a
+   * raster image type; every other image answer is served as a download (gateway/answer-headers.ts).
+   */
+  imageAnswer?: (path: string) => boolean;
+  /**
    * Add secrets to a forwarded request. `headers` and `query` are mutable copies; never put a
    * secret anywhere it could be echoed back to the browser.
    */

@@ -1,6 +1,6 @@
 import type { z } from 'zod';
 import { LinkError, protocolError } from './errors';
-import { machineBase } from './origin';
+import { CONSOLE_HEADERS, machineBase } from './origin';
 
 /**
  * Typed HTTP client for one machine. Every request goes to the console's own origin,
@@ -161,7 +161,7 @@ export class HttpClient {
     try {
       return await globalThis.fetch(this.url(opts.path, opts.query), {
         method: opts.method ?? 'GET',
-        headers,
+        headers: { ...headers, ...CONSOLE_HEADERS },
         body: body ?? null,
         signal: ctrl.signal,
         credentials: 'same-origin',
@@ -220,7 +220,7 @@ export function uploadWithProgress(opts: {
     const Xhr = globalThis.XMLHttpRequest;
     const xhr = new Xhr();
     xhr.open(opts.method, opts.url);
-    for (const [k, v] of Object.entries(opts.headers ?? {})) xhr.setRequestHeader(k, v);
+    for (const [k, v] of Object.entries({ ...opts.headers, ...CONSOLE_HEADERS })) xhr.setRequestHeader(k, v);
     xhr.timeout = opts.timeoutMs ?? 120_000;
     xhr.upload.onprogress = (e) => opts.onProgress?.({ loaded: e.loaded, total: e.total });
     xhr.onload = () => {

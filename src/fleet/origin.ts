@@ -4,6 +4,14 @@
  */
 let origin = '';
 
+/**
+ * Sent with every request the console makes to its own server. A page of another site cannot set
+ * a custom header without a CORS preflight (which the gateway never grants), so the gateway takes
+ * it as proof that a request comes from the console itself (see gateway/csrf.ts).
+ */
+export const CONSOLE_HEADER = 'X-Shopdeck';
+export const CONSOLE_HEADERS: Readonly<Record<string, string>> = Object.freeze({ [CONSOLE_HEADER]: '1' });
+
 export function apiOrigin(): string {
   return origin;
 }

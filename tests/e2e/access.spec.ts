@@ -182,7 +182,8 @@ test.describe('access control', () => {
 
     const crafted = await page.evaluate(async (id) => {
       const r = await fetch(`/machines/${id}/cnc/data?action=pause`, {
-        headers: { 'X-Shopdeck-Command': 'xtool.pause' },
+        // The viewer's own console page: it can send the console header, the role still counts.
+        headers: { 'X-Shopdeck-Command': 'xtool.pause', 'X-Shopdeck': '1' },
       });
       return { status: r.status, body: (await r.json()) as { error: string; needs: string } };
     }, ID);

@@ -2,6 +2,7 @@ import { useCallback, useEffect, useState } from 'react';
 import { z } from 'zod';
 import { useStore } from 'zustand';
 import { fleetStore } from '../../fleet/fleet';
+import { CONSOLE_HEADERS } from '../../fleet/origin';
 import {
   Badge,
   Button,
@@ -140,6 +141,7 @@ export function AuditPage() {
     setLoad((l) => (l.state === 'ok' ? l : { state: 'loading' }));
     fetch(`/api/audit${auditQuery(filters, { offset, limit: PAGE_SIZE })}`, {
       credentials: 'same-origin',
+      headers: CONSOLE_HEADERS,
       signal: ctl.signal,
     })
       .then(async (r) => {

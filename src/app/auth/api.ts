@@ -2,6 +2,7 @@ import { z } from 'zod';
 import { createStore } from 'zustand/vanilla';
 import { authStore } from '../../fleet/auth';
 import { ROLES } from '../../fleet/types';
+import { CONSOLE_HEADERS } from '../../fleet/origin';
 
 /**
  * The browser side of the gateway's access control: session, login, logout, PIN elevation.
@@ -17,6 +18,8 @@ const UserSchema = z.object({
 
 export const SessionSchema = z.object({
   mode: z.enum(['open', 'secured']),
+  /** Open mode on the network (SHOPDECK_OPEN=1), not only on this computer. */
+  openOnNetwork: z.boolean().optional(),
   user: UserSchema.nullable(),
   idleTimeoutS: z.number().nullable().optional(),
   elevation: z
@@ -60,7 +63,7 @@ export class AuthError extends Error {
 let elevationTimer: ReturnType<typeof setTimeout> | null = null;
 
 function apply(s: SessionInfo): SessionInfo {
-  authStore.setState({ mode: s.mode, user: s.user });
+  authStore.setState({ mode: s.mode, user: s.user, openOnNetwork: s.openOnNetwork === true });
   const until = s.elevation ? Date.parse(s.elevation.until) : NaN;
   sessionExtra.setState({
     idleTimeoutS: s.idleTimeoutS ?? null,
@@ -100,7 +103,8 @@ async function post(path: string, body?: unknown, method = 'POST'): Promise<Resp
   return fetch(path, {
     method,
     credentials: 'same-origin',
-    headers: body === undefined ? {} : { 'Content-Type': 'application/json' },
+    headers:
+      body === undefined ? CONSOLE_HEADERS : { 'Content-Type': 'application/json', ...CONSOLE_HEADERS },
     body: body === undefined ? undefined : JSON.stringify(body),
   });
 }
@@ -111,7 +115,7 @@ async function sessionFrom(r: Response): Promise<SessionInfo> {
 
 /** `GET /api/session` into `authStore`. */
 export async function fetchSession(): Promise<SessionInfo> {
-  const r = await fetch('/api/session', { credentials: 'same-origin' });
+  const r = await fetch('/api/session', { credentials: 'same-origin', headers: CONSOLE_HEADERS });
   if (!r.ok) throw await errorOf(r, `the gateway answered HTTP ${r.status}`);
   return sessionFrom(r);
 }

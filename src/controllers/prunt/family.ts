@@ -11,6 +11,10 @@ export const pruntFamily: FamilyDescriptor = {
   kind: 'prunt',
   label: 'Prunt',
   access: pruntAccess,
+  gateway: {
+    // Pictures in the schema's help texts (`<image src="extras/images/stepper_1.png">`).
+    imageAnswer: (path) => /^\/extras\/images\/[^/]+\.(png|jpe?g|gif|webp)$/i.test(path),
+  },
   createSimulator: (opts) =>
     createPruntSimulator({ ...opts, api: /flat|2025/.test(opts.id) ? 'flat' : 'module' }),
 };

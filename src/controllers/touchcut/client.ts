@@ -1,5 +1,6 @@
 import { LinkError } from '../../fleet/errors';
 import { HttpClient, parseJsonLenient, NOT_JSON, preview, type QueryValue } from '../../fleet/http';
+import { CONSOLE_HEADERS } from '../../fleet/origin';
 import {
   authResponseSchema,
   errorBodySchema,
@@ -289,7 +290,7 @@ export class TouchcutClient {
       let res: Response;
       try {
         res = await globalThis.fetch(this.http.url(path), {
-          headers: this.token ? { Authorization: `Bearer ${this.token}` } : {},
+          headers: { ...(this.token ? { Authorization: `Bearer ${this.token}` } : {}), ...CONSOLE_HEADERS },
           signal: ctrl.signal,
           credentials: 'same-origin',
         });

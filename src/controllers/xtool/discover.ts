@@ -1,6 +1,6 @@
 import { LinkError, protocolError } from '../../fleet/errors';
 import { parseJsonLenient, preview } from '../../fleet/http';
-import { apiOrigin } from '../../fleet/origin';
+import { apiOrigin, CONSOLE_HEADERS } from '../../fleet/origin';
 import { discoveryResponseSchema, type DiscoveryReply, type DiscoveryResponse } from './wire';
 
 /**
@@ -10,7 +10,11 @@ import { discoveryResponseSchema, type DiscoveryReply, type DiscoveryResponse } 
 export async function discoverLasers(signal?: AbortSignal): Promise<DiscoveryResponse> {
   let res: Response;
   try {
-    res = await globalThis.fetch(`${apiOrigin()}/api/discover/xtool`, { signal, credentials: 'same-origin' });
+    res = await globalThis.fetch(`${apiOrigin()}/api/discover/xtool`, {
+      signal,
+      credentials: 'same-origin',
+      headers: CONSOLE_HEADERS,
+    });
   } catch (e) {
     throw new LinkError(
       'network',

@@ -1,0 +1,62 @@
+import type { IncomingMessage, ServerResponse } from 'node:http';
+
+/**
+ * Security headers on every page and asset of the console itself (the controllers' answers get
+ * their own, stricter ones: answer-headers.ts).
+ *
+ * - No inline script and no eval: a string from a controller that slips into the page cannot run.
+ * - `frame-ancestors 'none'` and `X-Frame-Options: DENY`: no other page may frame the console
+ *   (clickjacking a Stop or a setting).
+ * - `connect-src 'self'`: the page talks to its own origin only (HTTP and WebSocket).
+ * - Development (`npm run dev`) needs inline script for React's hot reload: there, and only
+ *   there, `script-src` allows it.
+ */
+export function pageCsp(dev: boolean): string {
+  return [
+    "default-src 'self'",
+    `script-src 'self'${dev ? " 'unsafe-inline'" : ''}`,
+    // React and uPlot set styles through the CSSOM; inline style attributes stay allowed.
+    "style-src 'self' 'unsafe-inline'",
+    "img-src 'self' data: blob:",
+    "connect-src 'self'",
+    "worker-src 'self'",
+    "font-src 'self'",
+    "manifest-src 'self'",
+    "media-src 'self' data: blob:",
+    "object-src 'none'",
+    "base-uri 'none'",
+    "form-action 'self'",
+    "frame-src 'none'",
+    "frame-ancestors 'none'",
+  ].join('; ');
+}
+
+export function pageHeaders(dev: boolean): Record<string, string> {
+  return {
+    'Content-Security-Policy': pageCsp(dev),
+    'X-Frame-Options': 'DENY',
+    'X-Content-Type-Options': 'nosniff',
+    'Referrer-Policy': 'no-referrer',
+    'Cross-Origin-Opener-Policy': 'same-origin',
+    'Cross-Origin-Resource-Policy': 'same-origin',
+    'Permissions-Policy': 'camera=(), microphone=(), geolocation=(), payment=(), usb=(), serial=()',
+  };
+}
+
+/**
+ * Connect middleware: sets the page headers on every response (the gateway's own answers override
+ * them with theirs) and, in production, refuses source maps.
+ */
+export function pageHeadersMiddleware(dev: boolean) {
+  const headers = pageHeaders(dev);
+  return (req: IncomingMessage, res: ServerResponse, next: () => void): void => {
+    for (const [k, v] of Object.entries(headers)) res.setHeader(k, v);
+    if (!dev && /\.map(?:$|[?#])/i.test(req.url ?? '')) {
+      res.statusCode = 404;
+      res.setHeader('Content-Type', 'text/plain; charset=utf-8');
+      res.end('not found');
+      return;
+    }
+    next();
+  };
+}
