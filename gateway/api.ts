@@ -1,3 +1,4 @@
+import { listPins, pinInfo } from './tls-pin';
 import { type IncomingMessage, type ServerResponse } from 'node:http';
 import { z } from 'zod';
 import { roleAtLeast } from '../src/fleet/types';
@@ -7,7 +8,7 @@ import { discoverXtool } from './discovery';
 import { clientAddress, parseCookies, readJson, sendJson } from './http-util';
 import { machineInfo } from './machines';
 import { PIN_RULE, checkSecret } from './users';
-import type { GatewayContext, Who } from './context';
+import type { GatewayContext, Principal, Who } from './context';
 import { envNumber } from './context';
 
 /** What the browser reports about a command it sent to a simulated machine (src/app/boot.ts). */
@@ -54,6 +55,7 @@ export function createApi(ctx: GatewayContext) {
     cookie,
     mayUseMachine,
     needLogin,
+    pins,
   } = ctx;
   const limits = limiter.opts;
   /** Where each user logged in from: the per-user backstop spares those addresses. */
@@ -432,9 +434,72 @@ export function createApi(ctx: GatewayContext) {
         sendJson(res, 200, result);
         return;
       }
-      default:
+      case 'GET /api/tls': {
+        const p = supervisorOnly(req, res, 'the controllers’ certificates are for supervisors');
+        if (!p) return;
+        try {
+          sendJson(res, 200, {
+            machines: listPins(
+              config.machines.filter((m) => mayUseMachine(p, m.id)),
+              pins,
+            ),
+          });
+        } catch (e) {
+          sendJson(res, 500, { error: e instanceof Error ? e.message : String(e) });
+        }
+        return;
+      }
+      default: {
+        const forget = /^\/api\/tls\/([a-z0-9-]{1,40})$/.exec(url.pathname);
+        if (method === 'DELETE' && forget) {
+          const p = supervisorOnly(req, res, 'accepting a new certificate is for supervisors');
+          if (!p) return;
+          const m = byId.get(forget[1] ?? '');
+          const view = m && mayUseMachine(p, m.id) ? pinInfo(m, pins) : null;
+          if (!m || !view) {
+            sendJson(res, 404, { error: 'no machine reached over TLS by that id' });
+            return;
+          }
+          if (!view.canForget) {
+            sendJson(res, 409, {
+              error:
+                view.mode === 'configured'
+                  ? 'its fingerprint is in the machines file (tlsFingerprint): change it there'
+                  : 'no certificate is pinned for it yet',
+            });
+            return;
+          }
+          const gone = pins.forget(m.id);
+          record({
+            type: 'tls-forget',
+            result: 'ok',
+            user: p.name,
+            onBehalfOf: p.onBehalfOf,
+            source: 'gateway',
+            machine: m.id,
+            address,
+            detail: `forgot the pinned certificate ${gone?.fingerprint ?? ''}: the next connection trusts what it is shown`,
+          });
+          sendJson(res, 200, { forgotten: gone });
+          return;
+        }
         sendJson(res, 404, { error: `no such endpoint: ${method} ${url.pathname}` });
+      }
     }
+  }
+
+  /** The principal when it is a supervisor (everyone in open mode); otherwise answers and null. */
+  function supervisorOnly(req: IncomingMessage, res: ServerResponse, refusal: string): Principal | null {
+    const w = who(req, false);
+    if (!w.principal) {
+      needLogin(res, w);
+      return null;
+    }
+    if (!roleAtLeast(w.principal.role, 'supervisor')) {
+      sendJson(res, 403, { error: refusal, needs: 'supervisor' });
+      return null;
+    }
+    return w.principal;
   }
 
   return api;

@@ -482,5 +482,16 @@ describe('9: the controller certificate is pinned through the gateway', () => {
     expect(r.status).toBe(502);
     expect(((await r.json()) as { error: string }).error).toMatch(/certificate/i);
     expect(seen).toHaveLength(1);
+    // A supervisor sees the pin and, when the controller really was re-keyed, forgets it.
+    const list = (await (await consoleFetch(`${gw.url}/api/tls`)).json()) as {
+      machines: Array<{ id: string; mode: string; fingerprint: string }>;
+    };
+    expect(list.machines).toMatchObject([{ id: 'plasma', mode: 'pinned' }]);
+    expect(JSON.stringify(list)).not.toContain(String(port));
+    expect((await fetch(`${gw.url}/api/tls/plasma`, { method: 'DELETE' })).status).toBe(403);
+    expect((await consoleFetch(`${gw.url}/api/tls/plasma`, { method: 'DELETE' })).status).toBe(200);
+    expect((await consoleFetch(`${gw.url}/machines/plasma/status`)).status).toBe(200);
+    expect(seen).toHaveLength(2);
+    expect(gw.gw.audit.all().map((e) => e.type)).toEqual(expect.arrayContaining(['tls-trust', 'tls-forget']));
   }, 20_000);
 });
