@@ -11,6 +11,8 @@ export function sendJson(
 ): void {
   const text = JSON.stringify(body);
   res.writeHead(status, {
+    // The gateway's own refusals and failures say so: the page never reads them as the controller's.
+    ...(status >= 400 ? { 'X-Shopdeck-Gateway': 'error' } : {}),
     'Content-Type': 'application/json; charset=utf-8',
     'Content-Length': Buffer.byteLength(text),
     'Cache-Control': 'no-store',

@@ -298,7 +298,7 @@ export function createHttpProxy(ctx: GatewayContext) {
 
   /** The gateway's own failure (not the controller's answer): marked so the page can tell. */
   function gatewayError(res: ServerResponse, status: number, error: string): void {
-    sendJson(res, status, { error, gateway: true }, { 'X-Shopdeck-Gateway': 'error' });
+    sendJson(res, status, { error, gateway: true });
   }
 
   async function forward(

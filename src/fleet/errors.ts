@@ -17,6 +17,8 @@ export class LinkError extends Error {
   readonly vendorMessage: string | null;
   /** For `protocol`: the path of the value that failed validation ("working" / "heat.heaters.0"). */
   readonly path: string | null;
+  /** The console's own server answered (it could not reach the controller, or refused): never the vendor's words. */
+  readonly gateway: boolean;
 
   constructor(
     kind: LinkErrorKind,
@@ -26,6 +28,7 @@ export class LinkError extends Error {
       vendorCode?: string | null;
       vendorMessage?: string | null;
       path?: string | null;
+      gateway?: boolean;
     } = {},
   ) {
     super(message);
@@ -35,6 +38,7 @@ export class LinkError extends Error {
     this.vendorCode = opts.vendorCode ?? null;
     this.vendorMessage = opts.vendorMessage ?? null;
     this.path = opts.path ?? null;
+    this.gateway = opts.gateway ?? false;
   }
 
   toProblem(): LinkProblem {

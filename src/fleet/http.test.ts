@@ -145,3 +145,21 @@ describe('HttpClient.blob', () => {
     expect(e.status).toBe(503);
   });
 });
+
+describe('answers of the console server itself', () => {
+  it('are never read as the controller’s: words, kind by status, marked as the gateway’s', async () => {
+    const { gatewayError } = await import('./http');
+    const down = new Response(JSON.stringify({ error: 'Laser refused the connection' }), {
+      status: 502,
+      headers: { 'X-Shopdeck-Gateway': 'error' },
+    });
+    const e = gatewayError(down, { error: 'Laser refused the connection' });
+    expect(e?.kind).toBe('network');
+    expect(e?.message).toBe('Laser refused the connection');
+    expect(e?.gateway).toBe(true);
+    const refused = new Response('{}', { status: 403, headers: { 'X-Shopdeck-Gateway': 'error' } });
+    expect(gatewayError(refused, {})?.kind).toBe('http');
+    // The controller's own 502 (no mark) is left to the family's error parser.
+    expect(gatewayError(new Response('{}', { status: 502 }), {})).toBeNull();
+  });
+});

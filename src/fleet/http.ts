@@ -116,6 +116,8 @@ export class HttpClient {
     if (!res.ok) {
       const text = await res.text();
       const body = parseJsonLenient(text);
+      const own = gatewayError(res, body);
+      if (own) throw own;
       const vendor = this.parseError?.(res.status, body === NOT_JSON ? null : body, text);
       if (vendor) throw vendor;
       throw new LinkError('http', `HTTP ${res.status} from ${opts.path}${text ? `: ${preview(text)}` : ''}`, {
@@ -130,6 +132,8 @@ export class HttpClient {
     const text = await res.text();
     if (!res.ok) {
       const body = parseJsonLenient(text);
+      const own = gatewayError(res, body);
+      if (own) throw own;
       const vendor = this.parseError?.(res.status, body === NOT_JSON ? null : body, text);
       if (vendor) throw vendor;
       throw new LinkError('http', `HTTP ${res.status} from ${opts.path}${text ? `: ${preview(text)}` : ''}`, {
@@ -182,6 +186,23 @@ export class HttpClient {
 }
 
 export const NOT_JSON: unique symbol = Symbol('not-json');
+
+/**
+ * The console's own server marks its answers (`X-Shopdeck-Gateway: error`): it could not reach the
+ * controller, or refused the request. Such an answer is never read as the controller's: no vendor
+ * error code, no model verdict; its words are shown as they are.
+ */
+export function gatewayError(res: Response, body: unknown): LinkError | null {
+  if (res.headers.get('x-shopdeck-gateway') !== 'error') return null;
+  const words =
+    typeof body === 'object' && body !== null && typeof (body as { error?: unknown }).error === 'string'
+      ? (body as { error: string }).error
+      : `the console server answered HTTP ${res.status}`;
+  return new LinkError(res.status >= 500 ? 'network' : 'http', words.slice(0, 300), {
+    status: res.status,
+    gateway: true,
+  });
+}
 
 export function parseJsonLenient(text: string): unknown {
   const t = text.trim();
