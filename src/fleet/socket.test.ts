@@ -75,3 +75,47 @@ describe('LinkTracker', () => {
     vi.restoreAllMocks();
   });
 });
+
+describe('SocketLink coalesce', () => {
+  it('hands a burst over in one batch per frame, in order, and nothing after close()', async () => {
+    const sent: Array<(ev: { data: string }) => void> = [];
+    class FakeSocket {
+      readyState = 1;
+      onopen: (() => void) | null = null;
+      onmessage: ((ev: { data: string }) => void) | null = null;
+      onclose: (() => void) | null = null;
+      onerror: (() => void) | null = null;
+      constructor() {
+        sent.push((ev) => this.onmessage?.(ev));
+      }
+      send(): void {}
+      close(): void {}
+    }
+    const original = globalThis.WebSocket;
+    globalThis.WebSocket = FakeSocket as unknown as typeof WebSocket;
+    vi.useFakeTimers();
+    try {
+      const batches: string[][] = [];
+      let current: string[] = [];
+      const link = new SocketLink({
+        url: () => 'ws://x/',
+        coalesce: true,
+        onMessage: (m) => current.push(m),
+      });
+      const push = sent[0]!;
+      for (let i = 0; i < 1000; i++) push({ data: `m${i}` });
+      expect(current).toEqual([]); // nothing handed over synchronously
+      await vi.advanceTimersByTimeAsync(20);
+      batches.push(current);
+      current = [];
+      expect(batches[0]).toEqual(Array.from({ length: 1000 }, (_, i) => `m${i}`));
+      push({ data: 'late' });
+      link.close();
+      await vi.advanceTimersByTimeAsync(20);
+      expect(current).toEqual([]);
+    } finally {
+      vi.useRealTimers();
+      globalThis.WebSocket = original;
+    }
+  });
+});

@@ -173,6 +173,7 @@ export class PruntSession implements MachineSession {
     if (this.started) return;
     this.started = true;
     this.socket = new SocketLink({
+      coalesce: true,
       url: () => `${this.client.http.base}/websocket/everything`,
       autoConnect: true,
       onOpen: () => {
