@@ -125,4 +125,45 @@ describe('shopdeckGateway() in Vite', () => {
     expect(session).toMatchObject({ mode: 'open' });
     expect(await (await consoleFetch(`${base}/`)).text()).toContain('built');
   });
+
+  it('preview: security headers on every page, no source maps, no CORS for other localhost origins', async () => {
+    const t = tempDir();
+    cleanups.push(t.cleanup);
+    mkdirSync(path.join(t.dir, 'dist', 'assets'), { recursive: true });
+    writeFileSync(path.join(t.dir, 'dist', 'index.html'), '<!doctype html><title>built</title>');
+    writeFileSync(path.join(t.dir, 'dist', 'assets', 'app.js'), 'export {}');
+    writeFileSync(path.join(t.dir, 'dist', 'assets', 'app.js.map'), '{"sources":["secret.ts"]}');
+    const server = await preview({
+      root: t.dir,
+      configFile: false,
+      logLevel: 'silent',
+      preview: { host: '127.0.0.1', port: 0, strictPort: false },
+      plugins: [shopdeckGateway({ dataDir: t.dir, env: {} })],
+    });
+    cleanups.push(() => server.close());
+    const base = `http://127.0.0.1:${portOf(server.httpServer)}`;
+    for (const p of ['/', '/m/some-machine', '/assets/app.js']) {
+      const r = await fetch(`${base}${p}`);
+      const csp = r.headers.get('content-security-policy') ?? '';
+      expect(csp, p).toContain("frame-ancestors 'none'");
+      expect(csp, p).toMatch(/script-src 'self'(;|$)/);
+      expect(csp, p).not.toContain('unsafe-eval');
+      expect(r.headers.get('x-frame-options'), p).toBe('DENY');
+      expect(r.headers.get('x-content-type-options'), p).toBe('nosniff');
+      expect(r.headers.get('referrer-policy'), p).toBe('no-referrer');
+    }
+    expect((await fetch(`${base}/assets/app.js.map`)).status).toBe(404);
+    // A page on another localhost port asks for CORS: no allow-origin comes back.
+    const pre = await fetch(`${base}/api/session`, {
+      method: 'OPTIONS',
+      headers: {
+        Origin: 'http://localhost:9999',
+        'Access-Control-Request-Method': 'POST',
+        'Access-Control-Request-Headers': 'x-shopdeck',
+      },
+    });
+    expect(pre.headers.get('access-control-allow-origin')).toBeNull();
+    const get = await fetch(`${base}/`, { headers: { Origin: 'http://localhost:9999' } });
+    expect(get.headers.get('access-control-allow-origin')).toBeNull();
+  });
 });
