@@ -220,3 +220,27 @@ test.describe('attacks on the gateway from a browser', () => {
     await expect(page.locator('body')).toContainText('<script>alert(document.domain)</script>');
   });
 });
+
+test.describe('the console under its own Content-Security-Policy', () => {
+  test('no page of the demo fleet reports a CSP violation', async ({ page }) => {
+    const violations: string[] = [];
+    page.on('console', (m) => {
+      if (/Content Security Policy|Refused to (load|execute|apply|connect|frame)/i.test(m.text()))
+        violations.push(m.text());
+    });
+    await page.addInitScript(() => {
+      document.addEventListener('securitypolicyviolation', (e) =>
+        console.error(`Content Security Policy violation: ${e.violatedDirective} ${e.blockedURI}`),
+      );
+    });
+    const res = await page.goto('/');
+    expect(res?.headers()['content-security-policy']).toContain("frame-ancestors 'none'");
+    await expect(page.getByTestId('tile-demo-xtool')).toBeVisible();
+    for (const id of ['demo-xtool', 'demo-touchcut', 'demo-duet', 'demo-prunt', 'demo-g2core']) {
+      await page.goto(`/m/${id}`);
+      await expect(page.getByTestId('machine-link')).toBeVisible();
+      await page.waitForTimeout(300);
+    }
+    expect(violations).toEqual([]);
+  });
+});
