@@ -495,3 +495,25 @@ describe('9: the controller certificate is pinned through the gateway', () => {
     expect(gw.gw.audit.all().map((e) => e.type)).toEqual(expect.arrayContaining(['tls-trust', 'tls-forget']));
   }, 20_000);
 });
+
+describe('13: credentials in a query never reach the audit log', () => {
+  it('a refused connect with a typed password is logged without it', async () => {
+    const { auditTarget } = await import('./paths');
+    expect(auditTarget({ path: '/machine/connect', rawQuery: 'password=hunter2-secret&x=1' })).toBe(
+      '/machine/connect?password=[redacted]&x=1',
+    );
+    expect(auditTarget({ path: '/machine', rawQuery: 'sessionKey=abc123' })).toBe(
+      '/machine?sessionKey=[redacted]',
+    );
+    expect(auditTarget({ path: '/status', rawQuery: 'filter=%7B%7D' })).toBe('/status?filter=%7B%7D');
+    const s = await stub();
+    const gw = await gateway([entry('p1', s.url)], [user('vera', 'viewer', 'pw-vera-1', { machines: [] })]);
+    const cookie = await login(gw.url, 'vera', 'pw-vera-1');
+    const r = await consoleFetch(`${gw.url}/machines/p1/machine/connect?password=hunter2-secret`, {
+      headers: { Cookie: cookie },
+    });
+    expect(r.status).toBe(403);
+    expect(JSON.stringify(gw.gw.audit.all())).not.toContain('hunter2-secret');
+    expect(s.seen).toHaveLength(0);
+  });
+});

@@ -24,6 +24,7 @@ import { type DiscoveryOptions } from './discovery';
 import { clientAddress, parseCookies, sendJson } from './http-util';
 import { loadMachines, redact, secretForms, type MachineEntry, type MachinesConfig } from './machines';
 import { UserDirectory, dataDirPath, usersFilePath } from './users';
+import type { HeldSession } from './held-session';
 
 export type Families = Partial<Record<MachineKind, FamilyDescriptor>>;
 
@@ -114,6 +115,13 @@ export interface GatewayContext {
   readonly pins: PinStore;
   /** Every byte form of a machine's secrets, searched for in its answers and frames (redact.ts). */
   patternsFor(m: MachineEntry): readonly Buffer[];
+  /** Controller sessions the gateway holds, by machine id (held-session.ts). */
+  readonly heldSessions: Map<string, HeldSession>;
+  /**
+   * A secret learned at run time (a held session key, a password typed into a login form): from
+   * now on redacted like the configured ones (answers, frames, errors, audit); `false` forgets it.
+   */
+  learnSecret(machineId: string, value: string, known?: boolean): void;
   hostAllowed(req: IncomingMessage): boolean;
   /** Writes an audit entry; refusals of unauthenticated clients pass `refusals` first. */
   record(e: Omit<AuditEntry, 'time'>): void;
@@ -181,10 +189,29 @@ export function createContext(opts: GatewayOptions): GatewayContext {
   const patternsFor = (m: MachineEntry): readonly Buffer[] => {
     let p = patternCache.get(m.id);
     if (!p) {
-      p = secretPatterns(m.secrets);
+      p = secretPatterns([m.secrets, ...[...(learned.get(m.id) ?? [])].map((v) => ({ password: v }))]);
       patternCache.set(m.id, p);
     }
     return p;
+  };
+  // Held controller sessions (held-session.ts) and the secrets they learn at run time.
+  const heldSessions = new Map<string, HeldSession>();
+  const learned = new Map<string, Set<string>>();
+  const learnSecret = (machineId: string, value: string, known = true): void => {
+    const set = learned.get(machineId) ?? new Set<string>();
+    learned.set(machineId, set);
+    if (known === set.has(value)) return;
+    if (known) set.add(value);
+    else set.delete(value);
+    const formsOf = (id: string): string[] => {
+      const configured = byId.get(id)?.secrets ?? {};
+      const extra = [...(learned.get(id) ?? [])].flatMap((v) => secretForms({ password: v }));
+      return [...new Set([...secretForms(configured), ...extra])].sort((a, b) => b.length - a.length);
+    };
+    secretsOf.set(machineId, formsOf(machineId));
+    const all = [...new Set([...config.machines.map((m) => m.id), ...learned.keys()].flatMap(formsOf))];
+    allSecrets.splice(0, allSecrets.length, ...all.sort((a, b) => b.length - a.length));
+    patternCache.delete(machineId);
   };
 
   const allowedHosts = opts.allowedHosts ?? true;
@@ -486,6 +513,8 @@ export function createContext(opts: GatewayOptions): GatewayContext {
     refusals,
     patternsFor,
     pins,
+    heldSessions,
+    learnSecret,
   };
 }
 

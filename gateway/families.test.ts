@@ -97,6 +97,22 @@ function declared(fam: FamilyDescriptor, p: Probe): Role {
   }).role;
 }
 
+/**
+ * Requests that reached the controller from a browser: not the gateway's own session requests
+ * (a family whose session the gateway holds: the connect it intercepts, its keep-alive).
+ */
+function forwarded(fam: FamilyDescriptor, seen: ReadonlyArray<{ method: string; url: string }>): number {
+  const held = fam.gateway?.session;
+  if (!held) return seen.length;
+  return seen.filter((s) => {
+    const [p = '', q = ''] = s.url.split('?');
+    const own =
+      held.intercept({ method: s.method, path: p, query: new URLSearchParams(q) }) !== null ||
+      (s.method === 'GET' && p === held.keepAlive?.path);
+    return !own;
+  }).length;
+}
+
 describe('registered families × roles', () => {
   it('loads the family registry', () => {
     expect(loadError).toBeNull();
@@ -146,7 +162,7 @@ describe('registered families × roles', () => {
           const need = needs[i]!;
           const allowed = roleAtLeast(role, need);
           const label = `${role} ${p.ws ? 'WS' : p.method} ${p.path} ${p.body ?? ''} (needs ${need})`;
-          const before = stub.seen.length + stub.wsSeen.length;
+          const before = forwarded(fam, stub.seen) + stub.wsSeen.length;
           let status: number;
           let body = '';
           if (p.ws) {
@@ -167,7 +183,7 @@ describe('registered families × roles', () => {
             status = r.status;
             body = await r.text();
           }
-          const reached = stub.seen.length + stub.wsSeen.length - before;
+          const reached = forwarded(fam, stub.seen) + stub.wsSeen.length - before;
           if (allowed) {
             expect({ label, status, reached }).toEqual({ label, status: p.ws ? 101 : 200, reached: 1 });
           } else {

@@ -8,6 +8,7 @@ import { BodyTooLarge, clientAddress, rejectUpgrade, sendJson } from './http-uti
 import type { MachinesConfig } from './machines';
 import { createHttpProxy, READ_METHODS } from './proxy-http';
 import { createWsProxy } from './proxy-ws';
+import { endHeldSessions } from './held-session';
 import type { UserRecord } from './users';
 
 /**
@@ -136,6 +137,7 @@ export function createGateway(opts: GatewayOptions): Gateway {
     state.closed = true;
     clearInterval(sweep);
     ctx.refusals.dispose();
+    endHeldSessions(ctx); // held controller sessions end first (held-session.ts), sims still there
     for (const s of openSockets) s.terminate();
     openSockets.clear();
     for (const r of pending) r.destroy();

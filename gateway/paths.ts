@@ -50,6 +50,30 @@ export function canonicalPath(raw: string): string | null {
   return '/' + out.join('/');
 }
 
+/** Query parameters whose values are credentials: never written to the audit log. */
+const CREDENTIAL_PARAM =
+  /^(password|pass|passwd|pwd|pin|key|apikey|api_key|sessionkey|token|access_token|secret)$/i;
+
+/**
+ * The path and query as the audit log shows them: credential parameters (a Duet password typed
+ * into the login form, a session key) are replaced by `[redacted]`, whatever their value.
+ */
+export function auditTarget(t: { path: string; rawQuery: string }): string {
+  if (!t.rawQuery) return t.path;
+  const parts = t.rawQuery.split('&').map((p) => {
+    const i = p.indexOf('=');
+    const k = i < 0 ? p : p.slice(0, i);
+    let name = k;
+    try {
+      name = decodeURIComponent(k);
+    } catch {
+      /* keep as is */
+    }
+    return CREDENTIAL_PARAM.test(name) && i >= 0 ? `${k}=[redacted]` : p;
+  });
+  return `${t.path}?${parts.join('&')}`;
+}
+
 export interface SplitTarget {
   /** Canonical path, starts with "/" */
   path: string;

@@ -15,7 +15,8 @@ import {
   sendJson,
 } from './http-util';
 import { redact, type MachineEntry } from './machines';
-import { splitTarget, type SplitTarget } from './paths';
+import { holdHttp, type HeldHttp } from './held-session';
+import { auditTarget, splitTarget, type SplitTarget } from './paths';
 import type { GatewayContext, Verdict } from './context';
 import { crossSiteProblem } from './csrf';
 import type { AccessDecision } from '../src/fleet/access';
@@ -86,7 +87,7 @@ export function createHttpProxy(ctx: GatewayContext) {
       result: 'refused',
       machine: m.id,
       method,
-      path: scrub(t.path + (t.rawQuery ? `?${t.rawQuery}` : '')),
+      path: scrub(auditTarget(t)),
       label: decision.label,
       address: clientAddress(req),
       source: 'gateway',
@@ -154,7 +155,7 @@ export function createHttpProxy(ctx: GatewayContext) {
       }
     }
     const w = who(req, isCommand);
-    const auditPath = scrub(t.path + (t.rawQuery ? `?${t.rawQuery}` : ''));
+    const auditPath = scrub(auditTarget(t));
     const commandId =
       typeof req.headers['x-shopdeck-command'] === 'string'
         ? req.headers['x-shopdeck-command'].slice(0, 100)
@@ -206,19 +207,23 @@ export function createHttpProxy(ctx: GatewayContext) {
     }
     const query = new URLSearchParams(t.query);
     const before = query.toString();
+    // Held controller session (held-session.ts): connect/disconnect are answered there, the
+    // browser's key is dropped and the gateway's added; `held` re-sends an expired read once.
+    const held = await holdHttp(ctx, m, req, res, { method, path: t.path, query, headers, isCommand }, done);
+    if (held === 'answered') return;
     fam?.gateway?.injectSecrets?.({ method, path: t.path, headers, query }, m.secrets);
     const qs = query.toString() === before ? t.rawQuery : query.toString();
     const pathAndQuery = t.path + (qs ? `?${qs}` : '');
 
     if (m.simulated) {
-      await answerFromSimulator(req, res, m, method, pathAndQuery, headers, body, done);
+      await answerFromSimulator(req, res, m, method, pathAndQuery, headers, body, done, held);
       return;
     }
     if (!m.url) {
       sendJson(res, 502, { error: `machine ${m.id} has no url` });
       return;
     }
-    await forward(req, res, m, m.url, method, t.path, pathAndQuery, headers, body, done);
+    await forward(req, res, m, m.url, method, t.path, pathAndQuery, headers, body, done, held);
   }
 
   async function answerFromSimulator(
@@ -230,6 +235,7 @@ export function createHttpProxy(ctx: GatewayContext) {
     headers: Record<string, string>,
     buffered: Buffer | null,
     done: (r: { status?: number; error?: string }) => void,
+    held: HeldHttp | null = null,
   ): Promise<void> {
     const sim = simulatorFor(m);
     if (!sim) {
@@ -254,6 +260,10 @@ export function createHttpProxy(ctx: GatewayContext) {
       else sendJson(res, 502, { error: `simulator failed: ${e instanceof Error ? e.message : String(e)}` });
       return;
     }
+    // Held session (held-session.ts): a read whose key expired is sent once more with a new key.
+    const again = (pq?: string): void =>
+      void answerFromSimulator(req, res, m, method, pq ?? pathAndQuery, headers, buffered, done);
+    if (held?.retry(answer.status, again)) return;
     const given: Record<string, string> = {};
     answer.headers.forEach((value, key) => {
       const k = key.toLowerCase();
@@ -312,6 +322,7 @@ export function createHttpProxy(ctx: GatewayContext) {
     headers: Record<string, string>,
     body: Buffer | null,
     done: (r: { status?: number; error?: string }) => void,
+    held: HeldHttp | null = null,
   ): Promise<void> {
     const isHttps = target.protocol === 'https:';
     const basePath = target.pathname.replace(/\/+$/, '');
@@ -390,6 +401,10 @@ export function createHttpProxy(ctx: GatewayContext) {
     });
     upstream.on('response', (up) => {
       const status = up.statusCode ?? 502;
+      // Held session (held-session.ts): a read whose key expired is sent once more with a new key.
+      const again = (pq?: string): void =>
+        void forward(req, res, m, target, method, path, pq ?? pathAndQuery, headers, body, done);
+      if (held?.retry(status, again, { request: upstream, response: up })) return;
       const given = forwardResponseHeaders(up.headers);
       for (const [k, v] of Object.entries(given)) {
         given[k] = Array.isArray(v) ? v.map((x) => redact(x, forms)) : redact(v, forms);

@@ -11,8 +11,9 @@ import { bridgeSockets, DEFAULT_BRIDGE_LIMITS } from './ws-bridge';
 import { crossSiteProblem } from './csrf';
 import { clientAddress, forwardRequestHeaders, rejectUpgrade } from './http-util';
 import { redact } from './machines';
-import { splitTarget } from './paths';
+import { auditTarget, splitTarget } from './paths';
 import { bridgeSimSocket } from './sim-server';
+import { holdSocket } from './held-session';
 import type { GatewayContext } from './context';
 
 export function createWsProxy(ctx: GatewayContext) {
@@ -100,7 +101,7 @@ export function createWsProxy(ctx: GatewayContext) {
     if ('error' in t) return rejectUpgrade(socket, 400, { error: t.error });
     const decision = classify(m, { method: 'GET', path: t.path, query: t.query, websocket: true });
     const w = who(req, decision.command);
-    const auditPath = scrub(t.path + (t.rawQuery ? `?${t.rawQuery}` : ''));
+    const auditPath = scrub(auditTarget(t));
     const base = {
       machine: m.id,
       method: 'WS',
@@ -140,6 +141,10 @@ export function createWsProxy(ctx: GatewayContext) {
       .split(',')
       .map((s) => s.trim())
       .filter(Boolean);
+    // Held controller session (held-session.ts): opened if needed; the browser's key is dropped
+    // and the gateway's added to the upstream URL; the socket keeps the session alive.
+    const held = await holdSocket(ctx, m);
+    if (held && 'status' in held) return rejectUpgrade(socket, held.status, held.body);
 
     if (m.simulated) {
       const sim = simulatorFor(m);
@@ -159,7 +164,11 @@ export function createWsProxy(ctx: GatewayContext) {
           needs: decision.role,
           close: (code, reason) => client.close(code, reason),
         });
-        bridgeSimSocket(client, sim, t.path + (t.rawQuery ? `?${t.rawQuery}` : ''), () => {
+        held?.track(client); // held session: the simulator's socket uses the gateway's key
+        const simTarget = held
+          ? held.target(t.path, t.rawQuery)
+          : t.path + (t.rawQuery ? `?${t.rawQuery}` : '');
+        bridgeSimSocket(client, sim, simTarget, () => {
           openSockets.delete(client);
           liveSockets.delete(client);
         });
@@ -180,6 +189,7 @@ export function createWsProxy(ctx: GatewayContext) {
     const headers = forwardRequestHeaders(req.headers);
     const query = new URLSearchParams(t.query);
     const before = query.toString();
+    held?.apply(query, headers); // held session (held-session.ts): the gateway's key, not the browser's
     fam?.gateway?.injectSecrets?.({ method: 'GET', path: t.path, headers, query }, m.secrets);
     const qs = query.toString() === before ? t.rawQuery : query.toString();
     const target = baseUrl + t.path + (qs ? `?${qs}` : '');
@@ -205,6 +215,7 @@ export function createWsProxy(ctx: GatewayContext) {
       followRedirects: false,
       maxPayload: DEFAULT_BRIDGE_LIMITS.maxUpstreamFrame,
     });
+    held?.track(upstream); // held session: open while this socket is
     openSockets.add(upstream);
     const early: Array<{ data: RawData; isBinary: boolean }> = [];
     // Frames that arrive before the browser's socket is accepted: bounded like the rest.

@@ -49,6 +49,60 @@ export interface GatewayHints {
     req: { method: string; path: string; headers: Record<string, string>; query: URLSearchParams },
     secrets: GatewaySecrets,
   ) => void;
+  /**
+   * The gateway holds this controller's session (gateway/held-session.ts): it opens it, keeps the
+   * key, renews and keeps it alive, and adds it on the way out; the browser never sees the key.
+   */
+  session?: HeldSessionHooks;
+}
+
+/** An answer to a request the gateway made itself (held sessions). Header names are lower-case. */
+export interface UpstreamAnswer {
+  status: number;
+  headers: Record<string, string>;
+  body: string;
+}
+
+/** Sends one request of the gateway's own to the controller (or its simulator). */
+export type UpstreamRequest = (
+  method: string,
+  pathAndQuery: string,
+  headers?: Record<string, string>,
+) => Promise<UpstreamAnswer>;
+
+/** Requests the gateway answers itself from a held session. */
+export type HeldIntercept =
+  /** The browser's "connect": answered with the session's `answer`; `password` if the user typed one. */
+  | { kind: 'open'; password?: string }
+  /** The browser's "disconnect": answered locally, the shared session stays. */
+  | { kind: 'close' };
+
+export type HeldOpen =
+  /** `key` null: the controller wants none (no password protection). `answer` never holds the key. */
+  | { ok: true; key: string | null; answer: UpstreamAnswer }
+  /** Refused (wrong password): the controller's answer, for the browser as it is. */
+  | { ok: false; answer: UpstreamAnswer };
+
+/** A family's declaration that the gateway holds the controller's session (Node-safe, pure). */
+export interface HeldSessionHooks {
+  /** Requests the gateway answers itself instead of forwarding them, or null. */
+  intercept(req: { method: string; path: string; query: URLSearchParams }): HeldIntercept | null;
+  /** Opens a session (`password`: the configured one, else one a user typed, else none). */
+  open(upstream: UpstreamRequest, password: string | undefined): Promise<HeldOpen>;
+  /** Ends a session (unused, the gateway closing): best effort. */
+  close?(upstream: UpstreamRequest, key: string): Promise<void>;
+  /** Drops any key the browser sent from a forwarded HTTP request, then adds `key` (null: none). */
+  apply(req: { headers: Record<string, string>; query: URLSearchParams }, key: string | null): void;
+  /** The same for a WebSocket upgrade (the upstream URL's query and the upgrade's headers). */
+  applyWs(req: { headers: Record<string, string>; query: URLSearchParams }, key: string | null): void;
+  /** The controller's status says the key is unknown or expired (DSF: 403). */
+  isExpired(status: number): boolean;
+  /**
+   * `GET <path>` with the key every `everyMs` while a browser used the machine within
+   * `whileUsedWithinMs` and no upstream socket holds the session open; unused longer, the session
+   * is ended and the next request opens a new one.
+   */
+  keepAlive?: { path: string; everyMs: number; whileUsedWithinMs: number };
 }
 
 /** Everything a session gets from the console. */

@@ -19,8 +19,12 @@ import {
 
 /**
  * Typed client of the DSF REST API (`duet-dsf-rest-api.txt`), one method per endpoint, on the
- * console's `HttpClient` (`/machines/<id>/machine/...`). The session key from `connect` is sent
- * as `X-Session-Key` on every request.
+ * console's `HttpClient` (`/machines/<id>/machine/...`).
+ *
+ * Through the gateway there is no session key: the gateway holds the DSF session (it connects,
+ * keeps the key and adds it on the way out; `src/controllers/duet/gateway.ts`) and answers
+ * `connect` without `sessionKey`. Only where a simulator answers in the page (msw: demo mode,
+ * tests) does `connect` give a key, which is then sent as `X-Session-Key` and on the socket URL.
  *
  * File paths are whole RRF paths ("0:/gcodes/a b.gcode") and go into the URL as ONE
  * percent-encoded segment, as Duet Web Control does (`encodeURIComponent(filename)`).
@@ -73,7 +77,10 @@ export interface CodeOptions {
 
 export class DuetClient {
   readonly http: HttpClient;
+  /** Only when no gateway holds the session (msw); null through the gateway. */
   sessionKey: string | null = null;
+  /** `connect` succeeded and no 401/403 said the session is gone since. */
+  connected = false;
 
   constructor(machineId: string) {
     this.http = new HttpClient({
@@ -84,11 +91,22 @@ export class DuetClient {
     });
   }
 
-  /** `GET /machine/connect?password=` — the gateway replaces the password when one is configured. */
+  /**
+   * `GET /machine/connect?password=` — the gateway answers it from its own session (a configured
+   * password wins; a typed one is checked with DSF and kept by the gateway), without a key.
+   */
   async connect(password?: string): Promise<string | null> {
+    this.connected = false;
     const r = await this.http.json({ path: '/machine/connect', query: { password } }, connectResponse);
     this.sessionKey = r.sessionKey;
+    this.connected = true;
     return r.sessionKey;
+  }
+
+  /** The session is known to be gone (401/403): the next `connect` gets a new one. */
+  forget(): void {
+    this.sessionKey = null;
+    this.connected = false;
   }
 
   async noop(): Promise<void> {
@@ -99,11 +117,11 @@ export class DuetClient {
     try {
       await this.http.raw({ path: '/machine/disconnect', timeoutMs: 3000 });
     } finally {
-      this.sessionKey = null;
+      this.forget();
     }
   }
 
-  /** Socket URL (same origin), with the session key as the document says. */
+  /** Socket URL (same origin); with the session key only when there is one (msw). */
   socketUrl(): string {
     return this.http.url('/machine', { sessionKey: this.sessionKey ?? undefined });
   }

@@ -1,5 +1,6 @@
 import type { FamilyDescriptor } from '../../fleet/contract';
 import { duetAccess, duetAccessNeedsBody } from './access';
+import { duetHeldSession } from './gateway';
 import { createDuetSimulator } from './sim/simulator';
 
 /**
@@ -13,19 +14,10 @@ export const duetFamily: FamilyDescriptor = {
   accessNeedsBody: duetAccessNeedsBody,
   gateway: {
     /**
-     * The machine's password goes into `password` of `GET /machine/connect`, replacing whatever the
-     * browser sent, when one is configured. Without a configured password the browser's own value
-     * (typed into the login form after a 403) is forwarded as it is.
+     * The gateway holds the DSF session (`gateway.ts`): it connects with the machine's password
+     * (or one a user typed into the login form) and keeps the key; browsers never get it.
      */
-    injectSecrets: (req, secrets) => {
-      if (
-        req.method.toUpperCase() === 'GET' &&
-        req.path.split('?')[0] === '/machine/connect' &&
-        secrets.password
-      ) {
-        req.query.set('password', secrets.password);
-      }
-    },
+    session: duetHeldSession,
   },
   createSimulator: createDuetSimulator,
 };

@@ -22,7 +22,8 @@ import {
 } from './wire';
 
 /**
- * One Duet (DSF) machine: `GET /machine/connect` for a session key, then `WS /machine` for the
+ * One Duet (DSF) machine: `GET /machine/connect` (through the gateway: no key, the gateway holds
+ * the DSF session; a key only where msw answers), then `WS /machine` for the
  * object model (full model, then patches, `OK\n` after each), `PING\n` after 2 s of silence, and
  * a reconnect when no `PONG\n` comes within 4 s more. Session problems (401/403) reconnect once
  * silently, then show "needs login". Close codes 1001/1011 mean the DSF service is down.
@@ -149,7 +150,7 @@ export class DuetSession implements MachineSession {
     this.watchdog = null;
     this.closeSocket();
     for (const a of this.uploadAborts.values()) a.abort();
-    if (this.client.sessionKey) void this.client.disconnect().catch(() => undefined);
+    if (this.client.connected) void this.client.disconnect().catch(() => undefined);
   }
 
   /** The login form (needs-login): the password is sent with `GET /machine/connect`. */
@@ -218,7 +219,7 @@ export class DuetSession implements MachineSession {
     if (this.stopped) return;
     if (!this.authRetried) {
       this.authRetried = true;
-      this.client.sessionKey = null; // known bad
+      this.client.forget(); // known bad
       this.ctx.log.add('debug', 'link', 'Session expired: reconnecting');
       void this.connect();
       return;
@@ -318,7 +319,7 @@ export class DuetSession implements MachineSession {
       }
       this.acceptModel();
     } catch (e) {
-      if (isAuthError(e)) this.client.sessionKey = null; // the next reconnect gets a new key
+      if (isAuthError(e)) this.client.forget(); // the next reconnect gets a new session
     } finally {
       this.pollInFlight = false;
     }
@@ -352,7 +353,7 @@ export class DuetSession implements MachineSession {
       this.socketFailures > 0 &&
       now - this.socketDownSince >= POLL_AFTER_MS &&
       !this.gotFirst &&
-      this.client.sessionKey &&
+      this.client.connected &&
       this.link.state !== 'needs-login' &&
       !this.pollInFlight &&
       now - this.lastPollAt >= POLL_EVERY_MS
@@ -364,13 +365,13 @@ export class DuetSession implements MachineSession {
     // Without a socket, keep the session alive (uploads, file operations) with noop.
     if (
       !s &&
-      this.client.sessionKey &&
+      this.client.connected &&
       this.link.state !== 'needs-login' &&
       now - this.lastNoopAt >= NOOP_EVERY_MS
     ) {
       this.lastNoopAt = now;
       this.client.noop().catch((e: unknown) => {
-        if (isAuthError(e)) this.client.sessionKey = null;
+        if (isAuthError(e)) this.client.forget();
       });
     }
   }

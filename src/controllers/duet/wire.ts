@@ -44,7 +44,11 @@ function holey<T extends z.ZodType>(item: T) {
 
 // ---------------------------------------------------------------- session
 
-/** `GET /machine/connect` → `{ sessionKey }` (missing when no password protection: accepted). */
+/**
+ * `GET /machine/connect` → `{ sessionKey, … }`. `sessionKey` is optional: the gateway holds the DSF
+ * session and answers without it (the other fields pass); it is also missing from DSF without
+ * password protection. Only a simulator answering in the page (msw) gives one.
+ */
 export const connectResponse = z.looseObject({ sessionKey: strOrNull });
 export type ConnectResponse = z.infer<typeof connectResponse>;
 
