@@ -517,3 +517,78 @@ describe('13: credentials in a query never reach the audit log', () => {
     expect(s.seen).toHaveLength(0);
   });
 });
+
+describe('5 and 7: Duet spellings and G-code through the real gateway', () => {
+  it('a viewer cannot read config.g and an operator cannot smuggle a macro past M25', async () => {
+    const { duetFamily } = await import('../src/controllers/duet/family');
+    const s = await stub();
+    s.respond = (req, res) => {
+      if ((req.url ?? '').startsWith('/machine/connect')) {
+        res.writeHead(200, { 'Content-Type': 'application/json' });
+        res.end(
+          JSON.stringify({
+            sessionKey: 'k-12345678',
+            sessionTimeout: 8000,
+            isEmulated: false,
+            apiVersion: 1,
+          }),
+        );
+        return;
+      }
+      res.writeHead(200, { 'Content-Type': 'text/plain' });
+      res.end('M551 P"machine-password"');
+    };
+    const t = tempDir();
+    cleanups.push(t.cleanup);
+    const usersFile = path.join(t.dir, 'users.json');
+    writeJson(usersFile, {
+      users: [user('vera', 'viewer', 'pw-vera-1'), user('otto', 'operator', 'pw-otto-1')],
+    });
+    const gw = await startGateway({
+      machines: { file: null, machines: [{ ...entry('mk3', s.url), kind: 'duet' }] },
+      families: { duet: duetFamily },
+      dataDir: t.dir,
+      usersFile,
+      env: {},
+    });
+    cleanups.push(gw.close);
+    const vera = await login(gw.url, 'vera', 'pw-vera-1');
+    for (const p of [
+      '/machine/file/sys/config.g',
+      '/machine/file/0:%5Csys%5Cconfig.g',
+      '/machine/file/%2Fsys%2Fconfig.g',
+      '/machine/file/0:sys/config.g',
+      '/Machine/File/0:/SYS/CONFIG.G',
+      '/machine/file/0:/gcodes/../sys/config.g',
+    ]) {
+      const r = await consoleFetch(`${gw.url}/machines/mk3${p}`, { headers: { Cookie: vera } });
+      expect(r.status, p).toBe(403);
+      expect(await r.text(), p).not.toContain('machine-password');
+    }
+    const otto = await login(gw.url, 'otto', 'pw-otto-1');
+    for (const body of [
+      'M25 (;) M98 P"evil.g"',
+      'M25 (a;b) M562 P0',
+      'M25M98 P"evil.g"',
+      'M25:M98 P"evil.g"',
+      'M25\nM999',
+    ]) {
+      const r = await consoleFetch(`${gw.url}/machines/mk3/machine/code`, {
+        method: 'POST',
+        headers: { Cookie: otto, 'Content-Type': 'text/plain' },
+        body,
+      });
+      expect(r.status, body).toBe(403);
+    }
+    expect(
+      s.seen.filter((x) => !x.url.startsWith('/machine/connect') && !x.url.startsWith('/machine/noop')),
+    ).toEqual([]);
+    // The operator's own job control still passes.
+    const ok = await consoleFetch(`${gw.url}/machines/mk3/machine/code`, {
+      method: 'POST',
+      headers: { Cookie: otto, 'Content-Type': 'text/plain' },
+      body: 'M25',
+    });
+    expect(ok.status).toBe(200);
+  });
+});
