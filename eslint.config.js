@@ -1,9 +1,39 @@
 import js from '@eslint/js';
 import tseslint from 'typescript-eslint';
 import reactHooks from 'eslint-plugin-react-hooks';
+import { createNodeResolver, importX } from 'eslint-plugin-import-x';
+import jsxA11y from 'eslint-plugin-jsx-a11y';
 import globals from 'globals';
 
 const families = ['xtool', 'touchcut', 'duet', 'prunt', 'g2core'];
+
+// Import boundaries are checked on the path an import RESOLVES to, so a folder index
+// ('../controllers', '..') or any other spelling of a path is no way around them.
+const controllers = './src/controllers';
+const boundaryZones = [
+  // Imports run one way: app -> controllers -> fleet -> forms, ui.
+  {
+    target: ['./src/fleet', './src/forms', './src/ui'],
+    from: ['./src/controllers', './src/app'],
+    message: 'fleet/, forms/ and ui/ never import controllers/ or app/',
+  },
+  {
+    target: ['./src/forms', './src/ui'],
+    from: './src/fleet',
+    message: 'forms/ and ui/ never import fleet/',
+  },
+  ...families.map((f) => ({
+    target: `${controllers}/${f}`,
+    from: [
+      ...families.filter((o) => o !== f).map((o) => `${controllers}/${o}`),
+      // The registries import every family.
+      `${controllers}/index.ts`,
+      `${controllers}/families.ts`,
+      './src/app',
+    ],
+    message: 'a controller family never imports another family, the registries or app/',
+  })),
+];
 
 export default tseslint.config(
   {
@@ -20,50 +50,33 @@ export default tseslint.config(
   ...tseslint.configs.recommended,
   {
     languageOptions: { globals: { ...globals.browser, ...globals.node } },
-    plugins: { 'react-hooks': reactHooks },
+    plugins: { 'react-hooks': reactHooks, 'import-x': importX },
+    settings: {
+      'import-x/resolver-next': [
+        createNodeResolver({ extensions: ['.ts', '.tsx', '.mts', '.js', '.mjs', '.jsx', '.json'] }),
+      ],
+    },
     rules: {
       'react-hooks/rules-of-hooks': 'error',
       'react-hooks/exhaustive-deps': 'warn',
       '@typescript-eslint/no-explicit-any': 'error',
       '@typescript-eslint/no-unused-vars': ['error', { argsIgnorePattern: '^_', varsIgnorePattern: '^_' }],
+      'import-x/no-restricted-paths': ['error', { basePath: import.meta.dirname, zones: boundaryZones }],
+      'import-x/no-cycle': ['error', { ignoreExternal: true }],
     },
   },
+  // Type-aware rules: the TypeScript sources the tsconfig holds (src, gateway, tests, scripts).
+  {
+    files: ['**/*.{ts,tsx,mts}'],
+    languageOptions: {
+      parserOptions: { projectService: true, tsconfigRootDir: import.meta.dirname },
+    },
+    rules: {
+      '@typescript-eslint/no-floating-promises': 'error',
+      '@typescript-eslint/switch-exhaustiveness-check': ['error', { considerDefaultExhaustiveForUnions: true }],
+    },
+  },
+  { files: ['**/*.tsx'], ...jsxA11y.flatConfigs.recommended },
   // Playwright fixtures are destructured objects; `({}, testInfo)` is its documented idiom.
   { files: ['tests/e2e/**'], rules: { 'no-empty-pattern': 'off' } },
-  // Imports run one way: app -> controllers -> fleet -> forms, ui.
-  {
-    files: ['src/fleet/**', 'src/forms/**', 'src/ui/**'],
-    rules: {
-      'no-restricted-imports': [
-        'error',
-        {
-          patterns: [
-            {
-              group: ['**/controllers/**', '**/app/**'],
-              message: 'fleet/, forms/ and ui/ never import controllers/ or app/',
-            },
-          ],
-        },
-      ],
-    },
-  },
-  ...families.map((f) => ({
-    files: [`src/controllers/${f}/**`],
-    rules: {
-      'no-restricted-imports': [
-        'error',
-        {
-          patterns: [
-            {
-              group: [
-                ...families.filter((o) => o !== f).flatMap((o) => [`**/${o}`, `**/${o}/**`]),
-                '**/app/**',
-              ],
-              message: 'a controller family never imports another family or app/',
-            },
-          ],
-        },
-      ],
-    },
-  })),
 );

@@ -379,7 +379,9 @@ describe('audit endpoints', () => {
     expect(limited.entries.filter((e) => e.type === 'login')).toHaveLength(3);
     const csv = await consoleFetch(`${s.gw.url}/api/audit.csv?user=otto`, { headers: { Cookie: sup } });
     expect(csv.headers.get('content-type')).toContain('text/csv');
-    const lines = (await csv.text()).trim().split('\r\n');
+    const bytes = new Uint8Array(await csv.arrayBuffer());
+    expect([...bytes.slice(0, 3)]).toEqual([0xef, 0xbb, 0xbf]); // UTF-8 BOM: spreadsheets read it as UTF-8
+    const lines = new TextDecoder().decode(bytes).trim().split('\r\n');
     expect(lines[0]).toMatch(/^time,type,result,user/);
     expect(lines).toHaveLength(4);
   });

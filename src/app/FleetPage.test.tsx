@@ -74,7 +74,7 @@ describe('FleetPage', () => {
     const tile = screen.getByTestId('tile-printer');
     expect(within(tile).getByTestId('tile-activity').textContent).toBe('Running');
     expect(within(tile).getByText('bracket.gcode')).toBeTruthy();
-    expect(within(tile).getByText('42 %')).toBeTruthy();
+    expect(within(tile).getByText('42%')).toBeTruthy();
     expect(within(tile).getByText('20 min 00 s left')).toBeTruthy();
     // The broken machine's tile shows its error; the summary still counts the good one.
     expect(screen.getByTestId('error-boundary').textContent).toContain('tile exploded');

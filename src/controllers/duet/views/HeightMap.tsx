@@ -71,7 +71,7 @@ export function HeightMap({ session }: TabProps<DuetSession>) {
                         fill={heightColor(v, range)}
                         rx={4}
                       >
-                        <title>{`X ${formatNumber(m.xmin + x * m.xspacing, 1)} Y ${formatNumber(m.ymin + y * m.yspacing, 1)}: ${v.toFixed(3)} mm`}</title>
+                        <title>{`X ${formatNumber(m.xmin + x * m.xspacing, 1)} Y ${formatNumber(m.ymin + y * m.yspacing, 1)}: ${formatNumber(v, 3, 'mm')}`}</title>
                       </rect>
                       <text
                         x={px + cell / 2 - 1}
@@ -80,7 +80,7 @@ export function HeightMap({ session }: TabProps<DuetSession>) {
                         fontSize={11}
                         fill="#000"
                       >
-                        {v.toFixed(2)}
+                        {formatNumber(v, 2)}
                       </text>
                     </g>
                   );

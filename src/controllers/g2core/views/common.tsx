@@ -54,11 +54,11 @@ export function Dro({ session, compact }: { session: G2coreSession; compact?: bo
           <div className="axis" key={a} data-testid={`dro-${a}`}>
             <div className="name">{a.toUpperCase()}</div>
             <div className="work" data-testid={`dro-${a}-work`}>
-              {work === null ? '—' : work.toFixed(3)}
+              {formatNumber(work, 3)}
             </div>
             {!compact && mach !== null && (
               <div className="mach" data-testid={`dro-${a}-machine`}>
-                machine {mach.toFixed(3)} {rotary ? '°' : units}
+                machine {formatNumber(mach, 3)} {rotary ? '°' : units}
               </div>
             )}
           </div>

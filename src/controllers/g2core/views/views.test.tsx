@@ -76,10 +76,10 @@ describe('g2core views', () => {
   it('console: a refused line shows the status text', async () => {
     render(<ConsoleTab session={session} />);
     await waitFor(() => expect(screen.getByTestId('g2-stat').textContent).toBe('Ready'));
-    fireEvent.change(screen.getByTestId('g2-mdi-input'), { target: { value: 'G999' } });
-    fireEvent.click(screen.getByTestId('g2-mdi-send'));
+    fireEvent.change(screen.getByTestId('g2-console-input'), { target: { value: 'G999' } });
+    fireEvent.click(screen.getByTestId('g2-console-send'));
     await waitFor(() =>
-      expect(screen.getByTestId('g2-console-log').textContent).toContain('Gcode command unsupported'),
+      expect(screen.getByTestId('g2-console-history').textContent).toContain('Gcode command unsupported'),
     );
   });
   it('console: says on screen why MDI is not available while a job runs', async () => {

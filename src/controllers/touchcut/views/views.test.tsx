@@ -107,7 +107,7 @@ describe('touchcut views', () => {
     await waitFor(() => expect(session.ctx.snapshot.getState().link).toBe('online'));
     render(<ScreenView session={session} />);
     await screen.findByTestId('screen-image');
-    expect(screen.getByTestId('screen-age').textContent).toMatch(/image from \d+ s ago/);
+    expect(screen.getByTestId('screen-age').textContent).toMatch(/image from \d+ sec\.? ago/);
     act(() => fireEvent.click(screen.getByTestId('screen-pause')));
     expect(session.screenshot.watching).toBe(false);
     expect(screen.getByTestId('screen-age').textContent).toMatch(/^Paused/);
