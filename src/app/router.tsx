@@ -56,8 +56,23 @@ export type Route =
   | { name: 'family-page'; kind: string; page: string }
   | { name: 'not-found' };
 
+/** One path segment decoded, or null for a malformed escape (`%E0%A4%A`, a lone `%`). */
+function decodeSegment(segment: string): string | null {
+  try {
+    return decodeURIComponent(segment);
+  } catch {
+    return null;
+  }
+}
+
+/** Never throws: a path that cannot be decoded is the not-found route (rendered by the app). */
 export function matchRoute(pathname: string): Route {
-  const parts = pathname.split('/').filter(Boolean).map(decodeURIComponent);
+  const parts: string[] = [];
+  for (const segment of pathname.split('/').filter(Boolean)) {
+    const part = decodeSegment(segment);
+    if (part === null) return { name: 'not-found' };
+    parts.push(part);
+  }
   if (parts.length === 0) return { name: 'fleet' };
   if (parts[0] === 'm' && parts[1]) return { name: 'machine', id: parts[1], tab: parts[2] ?? null };
   if (parts[0] === 'audit' && parts.length === 1) return { name: 'audit' };
