@@ -1,4 +1,5 @@
 import { memo } from 'react';
+import { formatNumber } from './format';
 
 export interface Series {
   name: string;
@@ -56,7 +57,7 @@ export const TimeSeriesChart = memo(function TimeSeriesChart(props: {
           <g key={i}>
             <line className="axis" x1={padL} x2={width} y1={y(v)} y2={y(v)} strokeDasharray="3 4" />
             <text x={2} y={y(v) + 4}>
-              {v.toFixed(Math.abs(max - min) < 10 ? 1 : 0)}
+              {formatNumber(v, Math.abs(max - min) < 10 ? 1 : 0)}
             </text>
           </g>
         ))}

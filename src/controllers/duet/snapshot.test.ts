@@ -48,7 +48,7 @@ describe('snapshot mapping', () => {
     expect(job?.progress).toBeCloseTo(0.5, 3);
     expect(job?.remaining).toBe(300);
     const s = snapshotOf(m, () => 42);
-    expect(s.activityLabel).toBe('Printing Veil_Token.gcode · 49 %');
+    expect(s.activityLabel).toBe('Printing Veil_Token.gcode · 49%');
     expect(s.temperatures?.[0]).toEqual({ name: 'Bed', current: 59.5, target: 60 });
     expect(s.alarms?.map((a) => a.id)).toEqual(['heater-1-fault', 'messagebox-5']);
     expect(s.alarms?.[0]?.clears).toMatch(/M562 P1/);

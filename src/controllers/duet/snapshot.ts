@@ -1,4 +1,5 @@
 import type { Activity, Alarm, JobSummary, MachineSnapshot, Temperature } from '../../fleet/types';
+import { formatPercent } from '../../ui/format';
 import { baseName } from './client';
 import type { MachineStatus, ObjectModel } from './wire';
 
@@ -165,7 +166,7 @@ export function snapshotOf(m: ObjectModel, since: (id: string) => number): Parti
   let label = statusWords(status);
   if (job && (status === 'processing' || status === 'simulating')) {
     const p = job.progress;
-    label = `${label} ${job.name}${p !== null ? ` · ${Math.floor(p * 100)} %` : ''}`;
+    label = `${label} ${job.name}${p !== null ? ` · ${formatPercent(Math.floor(p * 100) / 100)}` : ''}`;
   }
   return {
     activity: activityOf(status),

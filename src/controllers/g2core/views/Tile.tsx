@@ -1,4 +1,5 @@
 import { useStoreSelect } from '../../../fleet/react';
+import { formatNumber } from '../../../ui';
 import type { G2coreSession } from '../session';
 
 /** On the fleet tile: the work position of every enabled axis, one line (the tile already shows the state). */
@@ -9,7 +10,7 @@ export function G2coreTile({ session }: { session: G2coreSession }) {
       : d.axes
           .map((a) => {
             const v = d.sr[`pos${a}`];
-            return `${a.toUpperCase()} ${typeof v === 'number' ? v.toFixed(2) : '—'}`;
+            return `${a.toUpperCase()} ${typeof v === 'number' ? formatNumber(v, 2) : '—'}`;
           })
           .join('  '),
   );

@@ -1,6 +1,6 @@
 import { useStore } from 'zustand';
 import type { TabProps } from '../../../fleet/contract';
-import { formatAge, Panel } from '../../../ui';
+import { formatAge, formatNumber, Panel } from '../../../ui';
 import { useNow } from '../../../fleet/react';
 import type { PruntSession } from '../session';
 import type { StatusEntry, StatusScalar } from '../status';
@@ -67,8 +67,9 @@ function show(v: StatusScalar, e: StatusEntry): string {
   if (typeof v === 'boolean') return v ? 'yes' : 'no';
   if (typeof v === 'number') {
     const unit = e.unit === 'celsius' ? '°C' : e.unit;
-    const t = e.kind === 'Integer' || Number.isInteger(v) ? String(v) : v.toFixed(Math.abs(v) < 10 ? 3 : 2);
-    return unit ? `${t} ${unit}` : t;
+    // Integers as they come (counts, ids: no grouping); decimals in the console's locale.
+    if (e.kind === 'Integer' || Number.isInteger(v)) return unit ? `${v} ${unit}` : String(v);
+    return formatNumber(v, Math.abs(v) < 10 ? 3 : 2, unit || undefined);
   }
   return v === '' ? '(none)' : String(v);
 }

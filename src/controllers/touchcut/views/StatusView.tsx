@@ -12,6 +12,7 @@ import {
   ProgressBar,
   formatAge,
   formatDuration,
+  formatPercent,
   formatTime,
 } from '../../../ui';
 import { activityOf, hasProgram, severityOf } from '../normalize';
@@ -124,11 +125,11 @@ export function StatusView({ session }: TabProps<TouchcutSession>) {
           <ProgressBar value={progress} label="program progress" />
           <KeyValues
             items={[
-              ['Progress', progress === null ? '—' : `${num((progress ?? 0) * 100, 1)} %`],
+              ['Progress', progress === null ? '—' : formatPercent(progress, 1)],
               ['Running for', formatDuration(snap.job?.elapsed)],
               ['Remaining (estimate)', formatDuration(snap.job?.remaining)],
               ['Feed rate', `${num(status.feedrate, 1)} ${feed}`],
-              ['Feed override', status.feedOverride === undefined ? '—' : `${num(status.feedOverride, 0)} %`],
+              ['Feed override', status.feedOverride === undefined ? '—' : formatPercent(status.feedOverride / 100)],
             ]}
           />
         </Panel>
