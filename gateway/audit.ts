@@ -1,5 +1,7 @@
 import { appendFileSync, existsSync, mkdirSync, readFileSync } from 'node:fs';
 import path from 'node:path';
+// The pure writer (no DOM); src/ui is the bottom layer, so the gateway and the browser share it.
+import { toCsv as writeCsv } from '../src/ui/csv';
 
 /**
  * The audit log: one JSON object per line in `<data folder>/audit.jsonl`. Appended by the
@@ -170,16 +172,16 @@ export const CSV_COLUMNS: Array<keyof AuditEntry> = [
   'source',
 ];
 
-/** One CSV cell: quoted, and defused against spreadsheet formula injection. */
-function csvCell(v: unknown): string {
-  if (v === undefined || v === null) return '';
-  let s = String(v);
-  if (/^[=+\-@\t\r]/.test(s)) s = `'${s}`;
-  return /[",\n\r]/.test(s) || s !== String(v) ? `"${s.replace(/"/g, '""')}"` : s;
-}
-
+/**
+ * The audit log as CSV, through the console's one writer (src/ui/csv.ts: RFC 4180, formula
+ * defusing). User names, paths, labels and controller messages are not ours: a cell such as
+ * `=HYPERLINK(…)` is written as text, never as a formula a spreadsheet would run. With a UTF-8
+ * byte order mark: the export is opened in spreadsheets, and user names are not ASCII-only.
+ */
 export function toCsv(entries: readonly AuditEntry[]): string {
-  const lines = [CSV_COLUMNS.join(',')];
-  for (const e of entries) lines.push(CSV_COLUMNS.map((c) => csvCell(e[c])).join(','));
-  return lines.join('\r\n') + '\r\n';
+  return writeCsv(
+    CSV_COLUMNS,
+    entries.map((e) => CSV_COLUMNS.map((c) => e[c])),
+    { bom: true },
+  );
 }

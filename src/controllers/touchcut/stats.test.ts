@@ -8,7 +8,6 @@ import {
   consumableTotals,
   presetRange,
   sessionsByUser,
-  toCsv,
   toolTotalsOfSessions,
   totalsRows,
 } from './stats';
@@ -104,22 +103,5 @@ describe('touchcut stats maths against the simulator', () => {
     });
     expect(imperial.units).toBe('imperial');
     expect(imperial.consumables[0]?.distance).toBeCloseTo((metric.consumables[0]?.distance ?? 0) / 25.4, 1);
-  });
-});
-
-describe('CSV export', () => {
-  it('quotes, escapes and defuses formulas from the controller', () => {
-    const csv = toCsv(
-      [
-        { label: 'name', value: (r: { n: string; v: number }) => r.n },
-        { label: 'value', value: (r) => r.v },
-      ],
-      [
-        { n: 'plain', v: 1 },
-        { n: 'a,"b"', v: 2.5 },
-        { n: '=HYPERLINK("x")', v: -3 },
-      ],
-    );
-    expect(csv).toBe('name,value\r\nplain,1\r\n"a,""b""",2.5\r\n"\'=HYPERLINK(""x"")",-3\r\n');
   });
 });

@@ -1,6 +1,7 @@
+import { formatDecimal, formatDuration, formatNumber } from '../../ui/format';
 import type { Consumable, ProgramRun, StatsSession, ToolTotals } from './wire';
 
-/** Production statistics maths and CSV, pure (shared by the view and the tests). */
+/** Production statistics maths, pure (shared by the view and the tests); CSV is src/ui/csv.ts. */
 
 // ---------------------------------------------------------------------------------------------
 // date ranges: `start-date` inclusive, `end-before-date` exclusive (manual), yyyy-mm-dd
@@ -256,63 +257,24 @@ export function programCounts(
 }
 
 // ---------------------------------------------------------------------------------------------
-// formatting and CSV
+// formatting
 
 export function hours(seconds: number): string {
-  return (seconds / 3600).toLocaleString(undefined, { maximumFractionDigits: 1, minimumFractionDigits: 1 });
+  return formatNumber(seconds / 3600, 1);
 }
 
 export function duration(seconds: number): string {
-  const s = Math.round(seconds);
-  const h = Math.floor(s / 3600);
-  const m = Math.floor((s % 3600) / 60);
-  return h > 0 ? `${h} h ${String(m).padStart(2, '0')} min` : `${m} min ${String(s % 60).padStart(2, '0')} s`;
+  return formatDuration(seconds);
 }
 
 /** Length in the answer's unit: mm shown as metres for large values. */
 export function length(value: number, units: string | undefined): string {
   const imperial = (units ?? '').toLowerCase().startsWith('imp');
   if (imperial)
-    return value >= 1200
-      ? `${(value / 12).toLocaleString(undefined, { maximumFractionDigits: 1 })} ft`
-      : `${value.toFixed(1)} in`;
-  return value >= 10_000
-    ? `${(value / 1000).toLocaleString(undefined, { maximumFractionDigits: 1 })} m`
-    : `${value.toFixed(0)} mm`;
+    return value >= 1200 ? formatDecimal(value / 12, 1, 'ft') : formatNumber(value, 1, 'in');
+  return value >= 10_000 ? formatDecimal(value / 1000, 1, 'm') : formatNumber(value, 0, 'mm');
 }
 
 export function lengthUnit(units: string | undefined): string {
   return (units ?? '').toLowerCase().startsWith('imp') ? 'in' : 'mm';
-}
-
-export interface CsvColumn<T> {
-  label: string;
-  value: (row: T) => string | number;
-}
-
-/**
- * RFC 4180 CSV. Text from the controller is untrusted: cells that a spreadsheet would run as a
- * formula (=, +, -, @, tab, CR) get a leading apostrophe; numbers stay numbers.
- */
-export function toCsv<T>(columns: readonly CsvColumn<T>[], rows: readonly T[]): string {
-  const cell = (v: string | number): string => {
-    if (typeof v === 'number') return Number.isFinite(v) ? String(v) : '';
-    let s = v;
-    if (/^[=+\-@\t\r]/.test(s)) s = `'${s}`;
-    return /[",\r\n]/.test(s) ? `"${s.replace(/"/g, '""')}"` : s;
-  };
-  const lines = [columns.map((c) => cell(c.label)).join(',')];
-  for (const r of rows) lines.push(columns.map((c) => cell(c.value(r))).join(','));
-  return lines.join('\r\n') + '\r\n';
-}
-
-export function downloadCsv(filename: string, csv: string): void {
-  const url = URL.createObjectURL(new Blob([csv], { type: 'text/csv;charset=utf-8' }));
-  const a = document.createElement('a');
-  a.href = url;
-  a.download = filename;
-  document.body.appendChild(a);
-  a.click();
-  a.remove();
-  setTimeout(() => URL.revokeObjectURL(url), 1000);
 }

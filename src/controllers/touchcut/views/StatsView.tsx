@@ -1,7 +1,7 @@
 import { useEffect, useMemo, useState } from 'react';
 import type { TabProps } from '../../../fleet/contract';
 import { useStoreSelect } from '../../../fleet/react';
-import { Button, DataTable, EmptyState, Field, Notice, Panel } from '../../../ui';
+import { Button, DataTable, EmptyState, Field, Notice, Panel, formatPercent, type CsvColumn } from '../../../ui';
 import type { StatsRequest } from '../feeds';
 import type { TouchcutSession } from '../session';
 import {
@@ -19,7 +19,6 @@ import {
   TIME_PARTS,
   toolTotalsOfSessions,
   totalsRows,
-  type CsvColumn,
   type RangePreset,
   type TotalsRow,
   type UserTotals,
@@ -266,7 +265,7 @@ function StatsBody({ session }: TabProps<TouchcutSession>) {
         <Card label="Active" value={duration(derived.active)} />
         <Card
           label="Productive"
-          value={derived.active > 0 ? `${Math.round((derived.productive / derived.active) * 100)} %` : '—'}
+          value={derived.active > 0 ? formatPercent(derived.productive / derived.active) : '—'}
         />
         <Card label="Tool on" value={duration(derived.toolOn)} />
         <Card label="Starts, all tools (pierces)" value={num(derived.pierces, 0)} />

@@ -1,8 +1,7 @@
 import { useEffect, useState, type ReactNode } from 'react';
 import { useStore } from 'zustand';
-import { Badge, Button } from '../../../ui';
+import { Badge, Button, csvFromColumns, downloadCsv, formatDecimal, type CsvColumn } from '../../../ui';
 import { setTouchcutUnits, touchcutUnits } from '../session';
-import { downloadCsv, toCsv, type CsvColumn } from '../stats';
 import { UNITS_CHOICES, type UnitsChoice } from '../wire';
 
 export function useUnits(): UnitsChoice {
@@ -32,8 +31,7 @@ export function UnitsPicker() {
 }
 
 export function num(v: number | undefined | null, digits = 2): string {
-  if (v === undefined || v === null || !Number.isFinite(v)) return '—';
-  return v.toLocaleString('en-US', { maximumFractionDigits: digits, minimumFractionDigits: 0 });
+  return formatDecimal(v, digits);
 }
 
 export function YesNo(props: {
@@ -55,7 +53,8 @@ export function CsvButton<T>(props: { name: string; columns: readonly CsvColumn<
     <Button
       small
       disabled={props.rows.length === 0}
-      onClick={() => downloadCsv(`${props.name}.csv`, toCsv(props.columns, props.rows))}
+      // A BOM: these files are opened in spreadsheets (operator and program names are not ASCII-only).
+      onClick={() => downloadCsv(`${props.name}.csv`, csvFromColumns(props.columns, props.rows, { bom: true }))}
       data-testid={`csv-${props.name.replace(/[^a-z0-9]+/gi, '-').toLowerCase()}`}
     >
       CSV
