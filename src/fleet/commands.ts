@@ -31,9 +31,24 @@ export interface CommandDecl<A = void> {
   confirmTwice?: boolean;
   /** True when the command makes sense in this state, else the reason it does not. */
   available?: (snap: MachineSnapshot) => true | string;
+  /**
+   * The stores `available` reads besides the machine snapshot: a button subscribes to exactly
+   * these, so what it shows is what the runner would do. Set by `defineCommands`.
+   */
+  needs?: readonly Subscribable[];
+  /** On-demand reads a success makes stale (query keys under the machine), refetched at once. */
+  invalidates?: readonly (readonly unknown[])[];
   /** Does the work. Resolves with a short result for the log ("ok", "job paused"). */
   perform: (args: A, ctx: CommandContext) => Promise<string | void>;
 }
+
+/** Anything a component can subscribe to (a zustand store). */
+export interface Subscribable {
+  subscribe(listener: () => void): () => void;
+}
+
+/** A command of any argument type, as kept in a session's list (`perform` takes what it takes). */
+export type AnyCommand = CommandDecl<never>;
 
 export function confirmationText<A>(cmd: CommandDecl<A>, args: A): string | null {
   if (cmd.confirm === false) return null;
@@ -87,6 +102,8 @@ export class CommandRunner {
     private readonly log: MachineLog,
     private readonly principal: () => Principal,
     private readonly now: () => number = Date.now,
+    /** After a command succeeded (the query layer invalidates what it declared stale). */
+    private readonly succeeded?: (cmd: CommandDecl<never>) => void,
   ) {}
 
   /** Why this command cannot be sent now, or null. */
@@ -122,6 +139,7 @@ export class CommandRunner {
       ok = true;
       message = r || 'ok';
       this.log.info('command', `${cmd.label}: ${message}`);
+      this.succeeded?.(cmd as CommandDecl<never>);
       return message;
     } catch (e) {
       message = describeError(e);

@@ -4,6 +4,7 @@ import type { AccessPolicy, BodyNeeded } from './access';
 import type { CommandDecl, CommandRunner } from './commands';
 import { LinkError } from './errors';
 import { backoffDelay, type Visibility } from './link';
+import type { MachineQueries } from './kernel/query';
 import type { MachineLog } from './log';
 import type { SimulatorFactory } from './sim';
 import type { LinkState, MachineInfo, MachineKind, MachineSnapshot, Role } from './types';
@@ -111,6 +112,8 @@ export interface SessionContext {
   snapshot: StoreApi<MachineSnapshot>;
   log: MachineLog;
   commands: CommandRunner;
+  /** On-demand reads of this machine (files, settings, stats): src/fleet/kernel/query.ts. */
+  queries: MachineQueries;
   visibility: Visibility;
   now: () => number;
 }

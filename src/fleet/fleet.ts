@@ -1,4 +1,6 @@
 import { createStore, type StoreApi } from 'zustand/vanilla';
+import { MachineQueries } from './kernel/query';
+import { createSharedStore } from './kernel/share';
 import { currentPrincipal } from './auth';
 import { CommandRunner, type Principal } from './commands';
 import type { MachineSession, SessionContext } from './contract';
@@ -26,16 +28,28 @@ export interface RuntimeOptions {
 /** Builds the context a session gets. Used by the app and by tests. */
 export function createContext(info: MachineInfo, opts: RuntimeOptions = {}): SessionContext {
   const now = opts.now ?? Date.now;
-  const snapshot = createStore<MachineSnapshot>(() => emptySnapshot(info.id));
+  const snapshot = createSharedStore<MachineSnapshot>(() => emptySnapshot(info.id));
   const log = new MachineLog(info.id, now);
+  const queries = new MachineQueries(info.id);
   const commands = new CommandRunner(
     info.id,
     () => snapshot.getState(),
     log,
     opts.principal ?? currentPrincipal,
     now,
+    (cmd) => {
+      for (const key of cmd.invalidates ?? []) void queries.invalidate(key);
+    },
   );
-  return { machine: info, snapshot, log, commands, visibility: opts.visibility ?? documentVisibility, now };
+  return {
+    machine: info,
+    snapshot,
+    log,
+    commands,
+    queries,
+    visibility: opts.visibility ?? documentVisibility,
+    now,
+  };
 }
 
 export function createRuntime(

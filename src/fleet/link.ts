@@ -63,7 +63,11 @@ export interface PollerOptions {
 export class Poller {
   private timer: ReturnType<typeof setTimeout> | null = null;
   private running = false;
+  /** A kick arrived while a poll was in flight: poll again as soon as it ends. */
+  private kicked = false;
   private stopped = true;
+  /** Counts stops: a poll of an earlier run neither blocks nor schedules the next run's polls. */
+  private generation = 0;
   private failures = 0;
   private unsubscribe: (() => void) | null = null;
   private readonly vis: Visibility;
@@ -86,6 +90,9 @@ export class Poller {
 
   stop(): void {
     this.stopped = true;
+    this.kicked = false;
+    this.running = false;
+    this.generation++;
     if (this.timer) clearTimeout(this.timer);
     this.timer = null;
     this.unsubscribe?.();
@@ -99,8 +106,10 @@ export class Poller {
   /** Poll as soon as possible (after the one in flight, if any). */
   kick(): void {
     if (this.stopped) return;
-    if (this.running) return;
-    this.schedule(0);
+    // The poll in flight may have read the state before the change the kick is about (a command
+    // just sent): poll once more right after it rather than waiting a whole interval.
+    if (this.running) this.kicked = true;
+    else this.schedule(0);
   }
 
   private nextDelay(): number {
@@ -120,18 +129,25 @@ export class Poller {
   private async tick(): Promise<void> {
     this.timer = null;
     if (this.stopped || this.running) return;
+    const gen = this.generation;
     this.running = true;
     this.started++;
     try {
       await this.opts.run();
-      this.failures = 0;
+      if (gen === this.generation) this.failures = 0;
     } catch (e) {
-      this.failures++;
-      this.opts.onError?.(e);
+      if (gen === this.generation) {
+        this.failures++;
+        this.opts.onError?.(e);
+      }
     } finally {
-      this.running = false;
+      if (gen === this.generation) this.running = false;
     }
-    if (!this.stopped && !this.timer) this.schedule(this.nextDelay());
+    if (this.stopped || gen !== this.generation) return;
+    if (this.kicked) {
+      this.kicked = false;
+      this.schedule(0);
+    } else if (!this.timer) this.schedule(this.nextDelay());
   }
 }
 
@@ -153,6 +169,33 @@ export interface SocketLinkOptions {
    * instead of one per message, and the page stays responsive. Off by default.
    */
   coalesce?: boolean;
+  /** How the link proves it is alive (see HeartbeatPolicy); without one, only a close counts. */
+  heartbeat?: HeartbeatPolicy;
+  /**
+   * Polling while the socket does not deliver (closed, reconnecting, dead): started when the
+   * socket goes down, stopped by the first message of a new socket. The socket stays the source.
+   */
+  fallback?: { run: () => Promise<void>; intervalMs: number; visibility?: Visibility };
+  now?: () => number;
+}
+
+/**
+ * A socket's declared liveness rule, so no family runs a watchdog of its own. Silence for
+ * `silenceMs` either sends `ping` (Duet: `PING\n`) and waits `answerMs` for any message, or,
+ * without a ping, is death by itself (Prunt: a status every second, 10 s silence is dead). A
+ * socket whose first message does not come within `firstMessageMs` of connecting is dead too.
+ * Dead: `onDead(reason)`, then the socket restarts with backoff.
+ */
+export interface HeartbeatPolicy {
+  silenceMs: number;
+  ping?: string;
+  /** After a ping, how long any message may take (default `silenceMs`). */
+  answerMs?: number;
+  /** From connect to the first message (default `silenceMs` + `answerMs`). */
+  firstMessageMs?: number;
+  /** How often the rule is checked (default min(500, silenceMs / 2)). */
+  checkEveryMs?: number;
+  onDead?: (reason: string) => void;
 }
 
 /** Runs `fn` at the next animation frame, or soon when there is none (hidden page, Node). */
@@ -178,9 +221,80 @@ export class SocketLink {
   private flushing = false;
   /** When the next reconnect is due (ms since epoch) or null. */
   retryAt: number | null = null;
+  /** Heartbeat bookkeeping: when this socket connected, last heard, pinged; whether it spoke yet. */
+  private connectedAt = 0;
+  private lastMessageAt = 0;
+  private pingSentAt: number | null = null;
+  private gotFirst = false;
+  private watch: ReturnType<typeof setInterval> | null = null;
+  private readonly fallback: Poller | null;
+  private readonly now: () => number;
 
   constructor(private readonly opts: SocketLinkOptions) {
+    this.now = opts.now ?? Date.now;
+    this.fallback = opts.fallback
+      ? new Poller({
+          run: opts.fallback.run,
+          intervalMs: () => opts.fallback?.intervalMs ?? 1000,
+          visibility: opts.fallback.visibility,
+        })
+      : null;
     if (opts.autoConnect !== false) this.connect();
+  }
+
+  /** True while the fallback poll runs in place of the socket. */
+  get polling(): boolean {
+    return this.fallback?.isRunning ?? false;
+  }
+
+  /** Silence for `silenceMs`: ping or death; a late first message: death (HeartbeatPolicy). */
+  private checkHeartbeat(): void {
+    const hb = this.opts.heartbeat;
+    if (!hb || this.closedByUs || !this.ws) return;
+    const now = this.now();
+    const answerMs = hb.answerMs ?? hb.silenceMs;
+    if (!this.gotFirst) {
+      if (now - this.connectedAt >= (hb.firstMessageMs ?? hb.silenceMs + answerMs))
+        this.dead(this.open ? 'No data after connecting' : 'The live connection did not open');
+      return;
+    }
+    if (this.pingSentAt !== null) {
+      if (now - this.pingSentAt >= answerMs) this.dead(`No answer to ${hb.ping?.trim() ?? 'a ping'}`);
+      return;
+    }
+    if (now - this.lastMessageAt < hb.silenceMs) return;
+    if (hb.ping !== undefined && this.send(hb.ping)) this.pingSentAt = now;
+    else this.dead(`No data for ${Math.round(hb.silenceMs / 1000)} s`);
+  }
+
+  private dead(reason: string): void {
+    this.opts.heartbeat?.onDead?.(reason);
+    if (!this.closedByUs) this.restart();
+  }
+
+  private startWatch(): void {
+    const hb = this.opts.heartbeat;
+    if (!hb || this.watch) return;
+    this.watch = setInterval(() => this.checkHeartbeat(), hb.checkEveryMs ?? Math.min(500, hb.silenceMs / 2));
+  }
+
+  private stopWatch(): void {
+    if (this.watch) clearInterval(this.watch);
+    this.watch = null;
+  }
+
+  private heard(): void {
+    this.lastMessageAt = this.now();
+    this.pingSentAt = null;
+    if (!this.gotFirst) {
+      this.gotFirst = true;
+      this.fallback?.stop();
+    }
+  }
+
+  /** The socket stopped delivering: poll in its place (when declared) until it is back. */
+  private socketDown(): void {
+    if (this.fallback && !this.closedByUs && !this.fallback.isRunning) this.fallback.start(0);
   }
 
   get open(): boolean {
@@ -193,6 +307,11 @@ export class SocketLink {
     this.timer = null;
     this.retryAt = null;
     const url = absoluteWsUrl(this.opts.url());
+    this.connectedAt = this.now();
+    this.lastMessageAt = this.connectedAt;
+    this.pingSentAt = null;
+    this.gotFirst = false;
+    this.startWatch();
     let ws: WebSocket;
     try {
       ws = new globalThis.WebSocket(url);
@@ -206,6 +325,8 @@ export class SocketLink {
       this.opts.onOpen?.();
     };
     ws.onmessage = (ev: MessageEvent) => {
+      if (this.ws !== ws) return;
+      this.heard();
       const d: unknown = ev.data;
       if (typeof d === 'string') this.deliver(d);
       else if (d instanceof ArrayBuffer) this.deliver(new TextDecoder().decode(d));
@@ -215,7 +336,10 @@ export class SocketLink {
       if (this.ws !== ws) return;
       this.ws = null;
       const again = this.opts.onClose?.(ev.code, ev.reason);
-      if (!this.closedByUs && again !== false) this.scheduleReconnect();
+      if (!this.closedByUs && again !== false) {
+        this.socketDown();
+        this.scheduleReconnect();
+      } else this.stopWatch();
     };
     ws.onerror = () => {
       // onclose follows.
@@ -260,11 +384,14 @@ export class SocketLink {
         /* ignore */
       }
     }
+    this.socketDown();
     this.scheduleReconnect();
   }
 
   close(): void {
     this.closedByUs = true;
+    this.stopWatch();
+    this.fallback?.stop();
     if (this.timer) clearTimeout(this.timer);
     this.timer = null;
     this.retryAt = null;
@@ -284,7 +411,7 @@ export class SocketLink {
   private scheduleReconnect(): void {
     if (this.closedByUs) return;
     const delay = backoffDelay(this.attempt++, this.opts.backoff);
-    this.retryAt = Date.now() + delay;
+    this.retryAt = this.now() + delay;
     this.timer = setTimeout(() => this.connect(), delay);
   }
 }

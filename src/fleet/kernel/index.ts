@@ -1,0 +1,18 @@
+export { Lifecycle, type RunToken } from './lifecycle';
+export { KernelSession, type PollSpec } from './session';
+export { createSharedStore, replaceEqualDeep, withSharing } from './share';
+export {
+  defineCommands,
+  useBlockedReason,
+  type CommandSet,
+  type CommandSpec,
+  type Readable,
+} from './commands';
+export {
+  MachineQueries,
+  useMachineQuery,
+  type Fetcher,
+  type MachineQueriesOptions,
+  type QueryOptions,
+  type QueryView,
+} from './query';
