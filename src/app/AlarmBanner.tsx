@@ -3,9 +3,9 @@ import { useStore } from 'zustand';
 import { allRuntimes, fleetStore } from '../fleet/fleet';
 import { useCan } from '../fleet/react';
 import type { Alarm } from '../fleet/types';
-import { Button, formatTime } from '../ui';
+import { Button, Dialog, formatTime } from '../ui';
 
-interface Blocking {
+export interface Blocking {
   machineId: string;
   machineName: string;
   alarm: Alarm;
@@ -53,11 +53,10 @@ function useAlarmSound(active: boolean): void {
   }, [active]);
 }
 
-/** Critical alarms that block every page until acknowledged (xTool flame detection). */
-export function AlarmBanner() {
+/** The unacknowledged blocking alarms of every machine (the App makes the page inert while any). */
+export function useBlockingAlarms(): Blocking[] {
   const machines = useStore(fleetStore, (s) => s.machines);
   const [blocking, setBlocking] = useState<Blocking[]>([]);
-  const canAck = useCan('operator');
   useEffect(() => {
     const update = () => {
       const next = collect();
@@ -69,20 +68,34 @@ export function AlarmBanner() {
     const unsubs = allRuntimes().map((rt) => rt.snapshot.subscribe(update));
     return () => unsubs.forEach((u) => u());
   }, [machines]);
+  return blocking;
+}
+
+/**
+ * Critical alarms that block every page until acknowledged (xTool flame detection): a modal
+ * alert dialog above everything, also above a dialog that was open. The page behind is inert
+ * (App.tsx); Escape does not dismiss it, only the acknowledgement does.
+ */
+export function AlarmBanner({ blocking }: { blocking: Blocking[] }) {
+  const canAck = useCan('operator');
   useAlarmSound(blocking.length > 0);
   if (blocking.length === 0) return null;
   return (
-    <div
-      className="alarm-overlay"
+    <Dialog
+      title="Critical alarm"
       role="alertdialog"
-      aria-modal="true"
-      aria-label="Critical alarm"
-      data-testid="blocking-alarm"
+      dismissible={false}
+      // Read the alarm first: no acknowledgement by an Enter meant for something else.
+      initialFocus="dialog"
+      className="alarm-dialog"
+      testId="blocking-alarm"
     >
       <div className="alarm-box">
         {blocking.map((b) => (
           <div key={`${b.machineId}:${b.alarm.id}`} className="alarm-item">
-            <div className="alarm-title">⚠ {b.machineName}</div>
+            <div className="alarm-title">
+              <span aria-hidden="true">⚠</span> {b.machineName}
+            </div>
             <div className="alarm-message">{b.alarm.message}</div>
             <div className="small">since {formatTime(b.alarm.since)}</div>
             {canAck ? (
@@ -103,6 +116,6 @@ export function AlarmBanner() {
           </div>
         ))}
       </div>
-    </div>
+    </Dialog>
   );
 }

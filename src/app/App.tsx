@@ -4,7 +4,7 @@ import { controllers } from '../controllers';
 import { authStore } from '../fleet/auth';
 import { fleetStore } from '../fleet/fleet';
 import { EmptyState, Notice } from '../ui';
-import { AlarmBanner } from './AlarmBanner';
+import { AlarmBanner, useBlockingAlarms } from './AlarmBanner';
 import { AuditPage } from './audit/AuditPage';
 import { LoginPage } from './auth/LoginPage';
 import { AuthMenu } from './auth/UserControls';
@@ -38,6 +38,7 @@ export function App() {
   const openOnNetwork = useStore(authStore, (s) => s.openOnNetwork === true);
   const machines = useStore(fleetStore, (s) => s.machines);
   const anySimulated = machines.some((m) => m.simulated);
+  const blocking = useBlockingAlarms();
   const familyPages = Object.values(controllers).flatMap((m) =>
     (m?.pages ?? []).map((p) => ({ kind: m.kind, ...p })),
   );
@@ -71,63 +72,66 @@ export function App() {
 
   return (
     <div className="app">
-      <header className="topbar">
-        <Link to="/" className="brand" aria-label="Shopdeck fleet">
-          <img src="/favicon.svg" alt="" width={26} height={26} />
-          Shopdeck
-        </Link>
-        <nav className="topnav" aria-label="Main">
-          <Link to="/" className={route.name === 'fleet' ? 'active' : ''}>
-            Fleet
+      {/* A blocking alarm makes the whole page behind it inert: no click, no focus, no reading. */}
+      <div className="app-page" inert={blocking.length > 0} data-testid="app-page">
+        <header className="topbar">
+          <Link to="/" className="brand" aria-label="Shopdeck fleet">
+            <img src="/favicon.svg" alt="" width={26} height={26} />
+            Shopdeck
           </Link>
-          <Link to="/audit" className={route.name === 'audit' ? 'active' : ''}>
-            Audit
-          </Link>
-          {familyPages.map((p) => (
-            <Link key={`${p.kind}/${p.path}`} to={`/${p.kind}/${p.path}`}>
-              {p.label}
+          <nav className="topnav" aria-label="Main">
+            <Link to="/" className={route.name === 'fleet' ? 'active' : ''}>
+              Fleet
             </Link>
-          ))}
-        </nav>
-        <div className="topbar-right">
-          <label className="theme-pick">
-            <span className="sr-only">Theme</span>
-            <select
-              className="ui-input"
-              value={theme}
-              onChange={(e) => setTheme(e.target.value as ThemeChoice)}
-              aria-label="Theme"
-            >
-              <option value="system">Theme: system</option>
-              <option value="light">Theme: light</option>
-              <option value="dark">Theme: dark</option>
-            </select>
-          </label>
-          <AuthMenu />
-        </div>
-      </header>
-      {mode === 'open' && (
-        <div className="open-banner" role="note" data-testid="open-mode-banner">
-          {openOnNetwork
-            ? 'Open mode on the network (SHOPDECK_OPEN=1): anyone who can reach this computer can control these machines. Add users to require a login (see the README).'
-            : 'Open mode: no login is needed, and the console only answers on this computer. Add users before serving it to tablets (see the README).'}
-        </div>
-      )}
-      {anySimulated && demoState.mode === 'none' && demoState.error && (
-        <Notice tone="bad" title="The simulators could not start in this browser">
-          {demoState.error}
-        </Notice>
-      )}
-      {mode === 'secured' && !user && route.name !== 'login' ? (
-        <main className="main">
-          <LoginPage />
-        </main>
-      ) : (
-        <main className="main">
-          <ErrorBoundary label="Page">{body}</ErrorBoundary>
-        </main>
-      )}
-      <AlarmBanner />
+            <Link to="/audit" className={route.name === 'audit' ? 'active' : ''}>
+              Audit
+            </Link>
+            {familyPages.map((p) => (
+              <Link key={`${p.kind}/${p.path}`} to={`/${p.kind}/${p.path}`}>
+                {p.label}
+              </Link>
+            ))}
+          </nav>
+          <div className="topbar-right">
+            <label className="theme-pick">
+              <span className="sr-only">Theme</span>
+              <select
+                className="ui-input"
+                value={theme}
+                onChange={(e) => setTheme(e.target.value as ThemeChoice)}
+                aria-label="Theme"
+              >
+                <option value="system">Theme: system</option>
+                <option value="light">Theme: light</option>
+                <option value="dark">Theme: dark</option>
+              </select>
+            </label>
+            <AuthMenu />
+          </div>
+        </header>
+        {mode === 'open' && (
+          <div className="open-banner" role="note" data-testid="open-mode-banner">
+            {openOnNetwork
+              ? 'Open mode on the network (SHOPDECK_OPEN=1): anyone who can reach this computer can control these machines. Add users to require a login (see the README).'
+              : 'Open mode: no login is needed, and the console only answers on this computer. Add users before serving it to tablets (see the README).'}
+          </div>
+        )}
+        {anySimulated && demoState.mode === 'none' && demoState.error && (
+          <Notice tone="bad" title="The simulators could not start in this browser">
+            {demoState.error}
+          </Notice>
+        )}
+        {mode === 'secured' && !user && route.name !== 'login' ? (
+          <main className="main">
+            <LoginPage />
+          </main>
+        ) : (
+          <main className="main">
+            <ErrorBoundary label="Page">{body}</ErrorBoundary>
+          </main>
+        )}
+      </div>
+      <AlarmBanner blocking={blocking} />
     </div>
   );
 }

@@ -6,9 +6,9 @@ import { useNow, useSnapshot } from '../fleet/react';
 import { mostSevereAlarm, type Activity, type MachineInfo } from '../fleet/types';
 import { Badge, EmptyState, Notice, ProgressBar, formatAge, formatDuration, formatPercent } from '../ui';
 import { ErrorBoundary } from './ErrorBoundary';
-import { Link, navigate } from './router';
+import { Link } from './router';
 import { ACTIVITY_TONE, ACTIVITY_WORDS, LINK_TONE, STALE_MS } from './status';
-import { useEffect, useState } from 'react';
+import { useEffect, useId, useState } from 'react';
 
 export function FleetPage() {
   const { machines, status, error } = useStore(fleetStore);
@@ -120,22 +120,20 @@ function TileBody({ info, rt }: { info: MachineInfo; rt: MachineRuntime }) {
   const mod = controllers[info.kind];
   const alarm = mostSevereAlarm(s.alarms.filter((a) => !a.acknowledged));
   const Extra = mod?.TileExtra;
-  const open = () => navigate(`/m/${encodeURIComponent(info.id)}`);
+  const nameId = useId();
+  // One link per tile, the machine's name; it covers the tile for the pointer (CSS), and any
+  // control on the tile sits above it. No clickable <article>.
   return (
     <article
       className={`tile activity-${s.activity}${alarm?.severity === 'critical' ? ' has-critical' : ''}`}
       data-testid={`tile-${info.id}`}
       data-activity={s.activity}
-      onClick={open}
-      role="link"
-      tabIndex={0}
-      onKeyDown={(e) => (e.key === 'Enter' || e.key === ' ') && open()}
-      aria-label={`${info.name}: ${ACTIVITY_WORDS[s.activity]}`}
+      aria-labelledby={nameId}
     >
       <header>
         <div>
-          <h3>
-            <Link to={`/m/${encodeURIComponent(info.id)}`} onClick={(e) => e.stopPropagation()}>
+          <h3 id={nameId}>
+            <Link to={`/m/${encodeURIComponent(info.id)}`} className="tile-name">
               {info.name}
             </Link>
           </h3>
@@ -180,12 +178,12 @@ function TileBody({ info, rt }: { info: MachineInfo; rt: MachineRuntime }) {
           className={`tile-alarm tone-${alarm.severity === 'critical' ? 'bad' : alarm.severity === 'warning' ? 'warn' : 'info'}`}
           data-testid="tile-alarm"
         >
-          {alarm.severity === 'critical' ? '⚠ ' : ''}
+          {alarm.severity === 'critical' && <span aria-hidden="true">⚠ </span>}
           {alarm.message}
         </div>
       )}
       {Extra && rt.session && (
-        <div className="tile-extra" onClick={(e) => e.stopPropagation()}>
+        <div className="tile-extra">
           <Extra session={rt.session} />
         </div>
       )}

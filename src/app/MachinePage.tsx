@@ -8,7 +8,7 @@ import { roleAtLeast } from '../fleet/types';
 import { Badge, Button, EmptyState, Notice, Panel, formatAge, formatDateTime } from '../ui';
 import { simulatorFor } from './demo';
 import { ErrorBoundary } from './ErrorBoundary';
-import { Link, navigate } from './router';
+import { Link } from './router';
 import { ACTIVITY_TONE, ACTIVITY_WORDS, LINK_TONE, STALE_MS } from './status';
 import type { Faults } from '../fleet/sim';
 
@@ -121,22 +121,22 @@ function MachinePageBody({ rt, tab }: { rt: MachineRuntime; tab: string | null }
           {rt.error}
         </Notice>
       )}
-      <nav className="tabs" role="tablist" aria-label="Machine sections">
+      {/* The sections are URLs (bookmarkable): links, the current one marked aria-current. */}
+      <nav className="tabs" aria-label="Machine sections">
         {tabs.map((t) => (
-          <button
+          <Link
             key={t.id}
-            role="tab"
-            type="button"
-            aria-selected={t.id === current?.id}
+            to={`/m/${encodeURIComponent(info.id)}/${t.id}`}
+            replace
+            aria-current={t.id === current?.id ? 'page' : undefined}
             className={t.id === current?.id ? 'tab active' : 'tab'}
-            onClick={() => navigate(`/m/${encodeURIComponent(info.id)}/${t.id}`, true)}
             data-testid={`tab-${t.id}`}
           >
             {t.label}
-          </button>
+          </Link>
         ))}
       </nav>
-      <div className="tab-body" role="tabpanel">
+      <div className="tab-body">
         {current && (
           <ErrorBoundary key={current.id} label={`${info.name} · ${current.label}`}>
             {current.render()}

@@ -32,8 +32,15 @@ export function useLocation(): { pathname: string; search: string } {
   return { pathname: u.pathname, search: u.search };
 }
 
-export function Link(props: AnchorHTMLAttributes<HTMLAnchorElement> & { to: string }) {
-  const { to, onClick, ...rest } = props;
+/** An in-app link: a real `<a href>` (open in a new tab, copy, bookmark), navigated in place. */
+export function Link(
+  props: AnchorHTMLAttributes<HTMLAnchorElement> & {
+    to: string;
+    /** Replace the current history entry instead of adding one (sections of one page). */
+    replace?: boolean;
+  },
+) {
+  const { to, onClick, replace, children, ...rest } = props;
   return (
     <a
       {...rest}
@@ -42,9 +49,11 @@ export function Link(props: AnchorHTMLAttributes<HTMLAnchorElement> & { to: stri
         onClick?.(e);
         if (e.defaultPrevented || e.button !== 0 || e.metaKey || e.ctrlKey || e.shiftKey || e.altKey) return;
         e.preventDefault();
-        navigate(to);
+        navigate(to, replace);
       }}
-    />
+    >
+      {children}
+    </a>
   );
 }
 

@@ -1,10 +1,11 @@
 import { useCallback, useEffect, useMemo, useState, type ReactNode } from 'react';
 import { useStore, type StoreApi } from 'zustand';
 import { useShallow } from 'zustand/react/shallow';
-import { Button, Dialog, downloadText, formatTime } from '../ui';
+import { Button, Dialog, ScrollRegion, downloadText, formatTime } from '../ui';
 import { authStore } from './auth';
 import { confirmationText, type CommandDecl, type CommandRunner } from './commands';
 import type { SessionContext } from './contract';
+import { useBlockedReason } from './kernel/commands';
 import type { LogEntry, MachineLog } from './log';
 import type { MachineSnapshot, Role } from './types';
 import { roleAtLeast } from './types';
@@ -53,6 +54,8 @@ export function CommandButton<A>(props: {
   command: CommandDecl<A>;
   args: A;
   children?: ReactNode;
+  /** The accessible name when the children are not plain text (default: the command's label). */
+  label?: string;
   variant?: 'primary' | 'secondary' | 'danger';
   small?: boolean;
   /** Hide instead of disabling when the user's role is too low. */
@@ -67,12 +70,11 @@ export function CommandButton<A>(props: {
   const role = useRole();
   const inFlight = useStore(runner.state, (s) => Boolean(s.inFlight[command.id]));
   const last = useStore(runner.state, (s) => s.last[command.id]);
-  // Re-evaluate availability when the snapshot changes.
-  useStore(props.snapshot, (s) => `${s.link}|${s.activity}|${s.activityLabel}|${s.alarms.length}`);
   const [confirmStep, setConfirmStep] = useState(0);
   const [error, setError] = useState<string | null>(null);
   const allowed = roleAtLeast(role, command.role);
-  const reason = runner.blockedReason(command);
+  // Follows the runner, the snapshot and every store the command's availability reads.
+  const reason = useBlockedReason(runner, props.snapshot, command);
   const confirmText = confirmationText(command, args);
 
   const send = useCallback(async () => {
@@ -100,6 +102,8 @@ export function CommandButton<A>(props: {
     else void send();
   };
   const title = reason ?? (last && !last.ok ? `Last attempt failed: ${last.message}` : command.label);
+  // Stop controls are marked: nothing may focus one by itself (a stray Enter would send it).
+  const stop = command.hazard === 'stop' || undefined;
   return (
     <>
       <Button
@@ -113,9 +117,10 @@ export function CommandButton<A>(props: {
         aria-disabled={Boolean(reason) || undefined}
         onClick={onClick}
         title={title}
-        aria-label={typeof props.children === 'string' ? undefined : command.label}
+        aria-label={props.label ?? (typeof props.children === 'string' ? undefined : command.label)}
         data-testid={props.testId ?? `cmd-${command.id}`}
         data-hazard={command.hazard}
+        data-stop={stop}
       >
         {inFlight ? `${command.label}…` : (props.children ?? command.label)}
       </Button>
@@ -134,6 +139,9 @@ export function CommandButton<A>(props: {
           title={confirmStep === 2 ? `Really ${command.label.toLowerCase()}?` : command.label}
           onCancel={() => setConfirmStep(0)}
           testId="confirm-dialog"
+          role="alertdialog"
+          // Focus on Cancel when the question is asked (each step once), never on re-render.
+          focusKey={confirmStep}
           actions={
             <>
               <Button onClick={() => setConfirmStep(0)} data-autofocus>
@@ -142,6 +150,7 @@ export function CommandButton<A>(props: {
               <Button
                 variant={command.hazard === 'dangerous' || command.hazard === 'stop' ? 'danger' : 'primary'}
                 data-testid="confirm-yes"
+                data-stop={stop}
                 onClick={() => {
                   if (command.confirmTwice && confirmStep === 1) setConfirmStep(2);
                   else void send();
@@ -204,16 +213,19 @@ export function LogView(props: { log: MachineLog; sources?: string[]; height?: n
           Download
         </Button>
       </div>
-      <div className="ui-log" style={{ maxHeight: props.height ?? 420 }} role="log" aria-live="polite">
-        {shown.length === 0 && <div className="ui-muted">No entries.</div>}
-        {shown.map((e) => (
-          <div key={e.seq} className={`lv-${e.level}`}>
-            <span className="t">{formatTime(e.at)}</span>
-            <span className="src">{e.source}</span>
-            {e.text}
-          </div>
-        ))}
-      </div>
+      {/* The box scrolls; while it does it is a focusable region, so the keyboard can scroll it. */}
+      <ScrollRegion className="ui-log" style={{ maxHeight: props.height ?? 420 }} label="Machine log">
+        <div role="log" aria-live="polite" aria-label="Machine log">
+          {shown.length === 0 && <div className="ui-muted">No entries.</div>}
+          {shown.map((e) => (
+            <div key={e.seq} className={`lv-${e.level}`}>
+              <span className="t">{formatTime(e.at)}</span>
+              <span className="src">{e.source}</span>
+              {e.text}
+            </div>
+          ))}
+        </div>
+      </ScrollRegion>
     </div>
   );
 }

@@ -1,5 +1,5 @@
 import { useId, useLayoutEffect, useMemo, useRef, useState, type KeyboardEvent, type ReactNode } from 'react';
-import { Button, Dialog, Notice, Panel } from './components';
+import { Button, Dialog, Notice, Panel, ScrollRegion } from './components';
 import { formatTime } from './format';
 
 /**
@@ -192,11 +192,14 @@ export function GcodeConsole(props: GcodeConsoleProps) {
   const recent = recall.slice(-RECENT).reverse();
 
   return (
-    <Panel title={props.title ?? 'G-code console'} actions={props.actions} testId={testId} className="ui-gcode">
+    <Panel
+      title={props.title ?? 'G-code console'}
+      actions={props.actions}
+      testId={testId}
+      className="ui-gcode"
+    >
       {!sender.canSend && (
-        <Notice tone="info">
-          Sending G-code needs the {sender.role} role. You can read the console.
-        </Notice>
+        <Notice tone="info">Sending G-code needs the {sender.role} role. You can read the console.</Notice>
       )}
       {sender.canSend && (
         <form
@@ -223,7 +226,9 @@ export function GcodeConsole(props: GcodeConsoleProps) {
             </Button>
           </div>
           <span id={hintId} className="ui-muted ui-gcode-hint">
-            {multiline ? 'Ctrl+Enter sends; ↑ on the first line recalls earlier ones.' : 'Enter sends; ↑/↓ recall earlier lines.'}
+            {multiline
+              ? 'Ctrl+Enter sends; ↑ on the first line recalls earlier ones.'
+              : 'Enter sends; ↑/↓ recall earlier lines.'}
           </span>
           {error && (
             <p role="alert" className="ui-gcode-error" data-testid={`${testId}-error`}>
@@ -256,30 +261,39 @@ export function GcodeConsole(props: GcodeConsoleProps) {
       )}
       {props.notice}
       {entries && (
-        <div
-          ref={historyRef}
+        // The box scrolls; while it does it is a focusable region, so the keyboard can scroll it.
+        <ScrollRegion
           className="ui-log ui-gcode-history"
-          role="log"
-          aria-live="polite"
-          aria-label="Sent G-code and replies"
-          data-testid={`${testId}-history`}
+          label="Sent G-code and replies"
+          scrollRef={historyRef}
         >
-          {entries.length === 0 && (
-            <div className="ui-muted">{props.emptyText ?? 'Nothing sent from this page yet.'}</div>
-          )}
-          {entries.map((e) => (
-            <div key={e.key} className={`ui-gcode-entry is-${e.tone}`} data-testid={`${testId}-entry-${e.key}`}>
-              <span className="t">{formatTime(e.at)}</span>
-              <span className="ui-gcode-sent">&gt; {e.sent}</span>
-              {e.status && <span className="ui-gcode-status"> — {e.status}</span>}
-              {e.reply?.map((r, i) => (
-                <div key={i} className="ui-gcode-reply">
-                  {r}
-                </div>
-              ))}
-            </div>
-          ))}
-        </div>
+          <div
+            role="log"
+            aria-live="polite"
+            aria-label="Sent G-code and replies"
+            data-testid={`${testId}-history`}
+          >
+            {entries.length === 0 && (
+              <div className="ui-muted">{props.emptyText ?? 'Nothing sent from this page yet.'}</div>
+            )}
+            {entries.map((e) => (
+              <div
+                key={e.key}
+                className={`ui-gcode-entry is-${e.tone}`}
+                data-testid={`${testId}-entry-${e.key}`}
+              >
+                <span className="t">{formatTime(e.at)}</span>
+                <span className="ui-gcode-sent">&gt; {e.sent}</span>
+                {e.status && <span className="ui-gcode-status"> — {e.status}</span>}
+                {e.reply?.map((r, i) => (
+                  <div key={i} className="ui-gcode-reply">
+                    {r}
+                  </div>
+                ))}
+              </div>
+            ))}
+          </div>
+        </ScrollRegion>
       )}
       {props.log}
       {asking && (
@@ -287,6 +301,7 @@ export function GcodeConsole(props: GcodeConsoleProps) {
           title="Send G-code?"
           onCancel={() => setAsking(null)}
           testId="confirm-dialog"
+          role="alertdialog"
           actions={
             <>
               <Button onClick={() => setAsking(null)} data-autofocus>

@@ -9,6 +9,9 @@ export {
   Notice,
   Panel,
   ProgressBar,
+  ScrollRegion,
+  STOP_CONTROLS,
+  useOverflows,
 } from './components';
 export type { Column, Tone } from './components';
 export { TimeSeriesChart } from './TimeSeriesChart';

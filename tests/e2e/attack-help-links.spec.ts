@@ -14,6 +14,11 @@ import { expect, test, type Page } from '@playwright/test';
 
 const ID = 'demo-prunt';
 
+/** A section of the machine page: a link in the "Machine sections" navigation. */
+function section(page: Page, name: string) {
+  return page.getByRole('navigation', { name: 'Machine sections' }).getByRole('link', { name, exact: true });
+}
+
 const IMAGE_ATTACKS = [
   '%2e%2e/acc-laser/system?action=setFlameAlarmMode&flameAlarmMode=1',
   '%2E%2E/demo-g2core/machine/panic',
@@ -119,7 +124,7 @@ test.describe('controller-supplied links and images stay on their machine', () =
     await hostileController(page);
     await page.goto(`/m/${ID}`);
     await expect(page.getByTestId('machine-link')).toHaveText('Online');
-    await page.getByTestId('tab-config').click();
+    await section(page, 'Config').click();
     await expect(page.getByTestId('form-view')).toBeVisible();
     await page.getByTestId('section-Steppers').click();
     const helps = page.locator('button.fm-help', { hasText: 'Help' });
@@ -174,7 +179,7 @@ test.describe('controller-supplied links and images stay on their machine', () =
     await hostileController(page);
     await page.goto(`/m/${ID}`);
     await expect(page.getByTestId('machine-link')).toHaveText('Online');
-    await page.getByTestId('tab-files').click();
+    await section(page, 'Files').click();
     await expect(page.getByTestId('prunt-files')).toContainText('benchy.gcode');
     await page.getByRole('button', { name: 'Check result again' }).click();
     const update = page.getByTestId('prunt-update-url');

@@ -7,12 +7,16 @@ import { expect, test, type Page } from '@playwright/test';
 
 const ID = 'demo-duet';
 
-async function tab(page: Page, id: string): Promise<void> {
-  await page.getByTestId(`tab-${id}`).tap();
+/** Opens a section of the machine page by its link in the "Machine sections" navigation. */
+async function tab(page: Page, name: string): Promise<void> {
+  await page
+    .getByRole('navigation', { name: 'Machine sections' })
+    .getByRole('link', { name, exact: true })
+    .tap();
 }
 
 async function simControl(page: Page, control: string): Promise<void> {
-  await tab(page, 'simulator');
+  await tab(page, 'Simulator');
   await page.getByTestId(`sim-control-${control}`).tap();
 }
 
@@ -37,7 +41,7 @@ test.describe('Duet (DSF)', () => {
     await expect(page.getByTestId('confirm-dialog')).toContainText('Start printing bracket.gcode?');
     await page.getByTestId('confirm-yes').tap();
 
-    await tab(page, 'overview');
+    await tab(page, 'Overview');
     await expect(page.getByTestId('duet-status')).toHaveText('Printing');
     await expect(page.getByTestId('duet-job-name')).toHaveText('bracket.gcode');
     // Cancel is offered only while paused.
@@ -58,7 +62,7 @@ test.describe('Duet (DSF)', () => {
     await expect(page.getByTestId('duet-job')).toContainText('Last: bracket.gcode');
 
     // The controller's messages are in the console with their levels.
-    await tab(page, 'console');
+    await tab(page, 'Console');
     await expect(page.getByTestId('duet-console-log')).toContainText(
       'Cancelled printing file 0:/gcodes/bracket.gcode',
     );
@@ -84,7 +88,7 @@ test.describe('Duet (DSF)', () => {
     await page.goto(`/m/${ID}`);
     await expect(page.getByTestId('machine-link')).toHaveText('Online');
     await simControl(page, 'box-4');
-    await tab(page, 'overview');
+    await tab(page, 'Overview');
     const dialog = page.getByTestId('duet-messagebox');
     await expect(dialog).toContainText('Which filament is loaded?');
     await page.getByTestId('duet-choice-1').tap();
@@ -92,7 +96,7 @@ test.describe('Duet (DSF)', () => {
     await expect(dialog).toHaveCount(0);
 
     await simControl(page, 'box-5');
-    await tab(page, 'files');
+    await tab(page, 'Files');
     await expect(dialog).toContainText('How many copies?');
     await page.getByTestId('duet-messagebox-input').fill('12');
     await expect(dialog).toContainText('At most 10');
@@ -114,7 +118,7 @@ test.describe('Duet (DSF)', () => {
     await expect(page.getByTestId('link-problem')).toContainText('DSF) is down');
     await expect(page.getByTestId('machine-link')).toHaveText('Online', { timeout: 30_000 });
 
-    await tab(page, 'console');
+    await tab(page, 'Console');
     await expect(log).toContainText('FIRMWARE_NAME');
     await expect(log).toContainText('> M115');
     // Emergency stop is on this page too.

@@ -18,7 +18,10 @@ test.describe('fleet', () => {
     }
     await expect(page.getByTestId('fleet-summary')).toContainText('5 machines');
 
-    await page.getByTestId('tile-demo-duet').click();
+    // One link per tile: the machine's name.
+    const duet = page.getByRole('article', { name: 'Printer bay — Duet 3' });
+    await expect(duet.getByRole('link')).toHaveCount(1);
+    await duet.getByRole('link', { name: 'Printer bay — Duet 3' }).click();
     await expect(page).toHaveURL(/\/m\/demo-duet$/);
     await expect(page.getByTestId('simulated-banner')).toBeVisible();
     await expect(page.getByTestId('machine-link')).toHaveText('Online');
@@ -35,7 +38,7 @@ test.describe('fleet', () => {
     await page.goto('/m/demo-xtool');
     await expect(page.getByTestId('machine-link')).toHaveText('Online');
     const small = await page.evaluate(() =>
-      [...document.querySelectorAll('main button, main [role="tab"], .topnav a')]
+      [...document.querySelectorAll('main button, nav[aria-label="Machine sections"] a, .topnav a')]
         .filter((el) => (el as HTMLElement).offsetParent !== null)
         .map((el) => ({
           text: (el.textContent ?? '').trim().slice(0, 30),

@@ -7,6 +7,11 @@ import { expect, test, type Page } from '@playwright/test';
 
 const ID = 'demo-g2core';
 
+/** A section of the machine page: a link in the "Machine sections" navigation. */
+function section(page: Page, name: string) {
+  return page.getByRole('navigation', { name: 'Machine sections' }).getByRole('link', { name, exact: true });
+}
+
 async function asRole(page: Page, role: 'operator' | 'supervisor'): Promise<void> {
   await page.route('**/api/session', (route) =>
     route.fulfill({
@@ -29,8 +34,8 @@ test.describe('g2core', () => {
     await page.goto(`/m/${ID}/jobs`);
     await expect(page.getByTestId('machine-link')).toHaveText('Online');
     // Operators do not see the supervisor tabs.
-    await expect(page.getByTestId('tab-settings')).toHaveCount(0);
-    await expect(page.getByTestId('tab-console')).toHaveCount(0);
+    await expect(section(page, 'Settings')).toHaveCount(0);
+    await expect(section(page, 'Console')).toHaveCount(0);
 
     await page.getByTestId('g2-job-name').fill('bar.nc');
     await page.getByTestId('g2-job-gcode').fill(JOB);

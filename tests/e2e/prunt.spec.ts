@@ -1,4 +1,4 @@
-import { expect, test } from '@playwright/test';
+import { expect, test, type Page } from '@playwright/test';
 
 /**
  * Prunt config editor against the simulated board `demo-prunt` (module API, msw in the page).
@@ -7,6 +7,11 @@ import { expect, test } from '@playwright/test';
  */
 
 const ID = 'demo-prunt';
+
+/** A section of the machine page: a link in the "Machine sections" navigation. */
+function section(page: Page, name: string) {
+  return page.getByRole('navigation', { name: 'Machine sections' }).getByRole('link', { name, exact: true });
+}
 const FIELD = 'Steppers$Steppers$STEPPER_1$Run current';
 
 test.describe('Prunt config editor', () => {
@@ -15,7 +20,7 @@ test.describe('Prunt config editor', () => {
   }) => {
     await page.goto(`/m/${ID}`);
     await expect(page.getByTestId('machine-link')).toHaveText('Online');
-    await page.getByTestId('tab-config').click();
+    await section(page, 'Config').click();
     await expect(page.getByTestId('form-view')).toBeVisible();
 
     await page.getByTestId('section-Steppers').click();
@@ -59,24 +64,24 @@ test.describe('Prunt config editor', () => {
     test.skip(info.project.name !== 'desktop', 'desktop layout only');
     await page.goto(`/m/${ID}`);
     await expect(page.getByTestId('machine-link')).toHaveText('Online');
-    await page.getByTestId('tab-status').click();
+    await section(page, 'Status').click();
     await expect(page.getByTestId('prunt-status')).toContainText('Internal Status Reporter');
     await expect(page.getByTestId('prunt-status')).toContainText(
       'Only present when the thermistor kind is not Disabled.',
     );
-    await page.getByTestId('tab-console').click();
+    await section(page, 'G-code').click();
     await page.getByTestId('prunt-gcode-input').fill('M114');
     await page.getByTestId('prunt-gcode-input').press('Enter');
     await expect(page.getByTestId('prunt-gcode-history')).toContainText('Completed');
     await expect(page.getByTestId('prunt-gcode-history')).toContainText('X:117.500');
-    await page.getByTestId('tab-files').click();
+    await section(page, 'Files').click();
     await expect(page.getByTestId('prunt-files')).toContainText('benchy.gcode');
     await page.getByTestId('run-benchy.gcode').click();
     await page.getByTestId('confirm-yes').click();
     await expect(page.getByTestId('machine-activity')).toContainText(/running/i);
     await expect(page.getByTestId('run-calibration_cube.gcode')).toBeDisabled();
     // The controller's own 500 text is shown as it is, next to the action.
-    await page.getByTestId('tab-console').click();
+    await section(page, 'G-code').click();
     await page.getByTestId('prunt-gcode-input').fill('G28');
     await page.getByTestId('prunt-gcode-input').press('Enter');
     await expect(page.getByTestId('prunt-gcode-error')).toHaveText(

@@ -8,6 +8,11 @@ import { expect, test, type Page } from '@playwright/test';
 
 const ID = 'demo-xtool';
 
+/** A section of the machine page: a link in the "Machine sections" navigation. */
+function section(page: Page, name: string) {
+  return page.getByRole('navigation', { name: 'Machine sections' }).getByRole('link', { name, exact: true });
+}
+
 /** Act as an operator: the console asks the gateway who we are (`/api/session`). */
 async function asOperator(page: Page): Promise<void> {
   await page.route('**/api/session', (route) =>
@@ -19,7 +24,7 @@ async function asOperator(page: Page): Promise<void> {
 }
 
 async function simControl(page: Page, control: string): Promise<void> {
-  await page.getByTestId('tab-simulator').click();
+  await section(page, 'Simulator').click();
   await page.getByTestId(`sim-control-${control}`).click();
 }
 
@@ -33,16 +38,16 @@ test.describe('xTool D-series', () => {
     await page.goto(`/m/${ID}`);
     await expect(page.getByTestId('machine-link')).toHaveText('Online');
     // Operators see job controls but not the supervisor tabs.
-    await expect(page.getByTestId('tab-console')).toHaveCount(0);
-    await expect(page.getByTestId('tab-firmware')).toHaveCount(0);
+    await expect(section(page, 'G-code')).toHaveCount(0);
+    await expect(section(page, 'Firmware')).toHaveCount(0);
 
     await simControl(page, 'load-job');
-    await page.getByTestId('tab-overview').click();
+    await section(page, 'Status').click();
     await expect(page.getByTestId('xtool-press-button')).toBeVisible();
     await expect(page.getByTestId('machine-label')).toContainText('press the button on the machine');
 
     await simControl(page, 'button');
-    await page.getByTestId('tab-overview').click();
+    await section(page, 'Status').click();
     await expect(page.getByTestId('xtool-state')).toHaveText('running');
 
     // Pause: no confirmation, a big touch target.
@@ -76,10 +81,13 @@ test.describe('xTool D-series', () => {
     });
     await expect(page).toHaveURL(/\/$/);
     await expect(alarm).toBeVisible();
-    // The rest of the page is blocked: clicks land on the overlay, not the tiles.
+    // The rest of the page is blocked: inert, and clicks land on the alarm's backdrop, not the tiles.
+    await expect(alarm).toHaveRole('alertdialog');
+    await expect(page.getByTestId('app-page')).toHaveAttribute('inert', '');
     await expect(page.getByTestId('tile-demo-duet')).toBeVisible();
     await page
       .getByTestId('tile-demo-duet')
+      .locator('a')
       .click({ trial: true, timeout: 2000 })
       .then(
         () => {
@@ -90,7 +98,7 @@ test.describe('xTool D-series', () => {
 
     await page.getByTestId(`ack-${ID}`).click();
     await expect(alarm).toBeHidden();
-    await page.getByTestId('tile-demo-duet').click();
+    await page.getByRole('link', { name: 'Printer bay — Duet 3' }).click();
     await expect(page).toHaveURL(/\/m\/demo-duet$/);
   });
 });

@@ -59,7 +59,6 @@ function LoginForm() {
             value={name}
             onChange={(e) => setName(e.target.value)}
             aria-invalid={error ? true : undefined}
-            autoFocus
           />
         )}
       </Field>

@@ -130,6 +130,7 @@ export function MessageBoxDialog({ session }: { session: DuetSession }) {
     dismissed: s.dismissedBoxes,
   }));
   if (!box || dismissed.includes(box.seq)) return null;
+  // One dialog per box (`key`): it takes focus once when the box appears, not on each model frame.
   return (
     <MessageBoxBody key={box.seq} box={box} session={session} onHide={() => session.dismissBox(box.seq)} />
   );
@@ -171,7 +172,7 @@ function MessageBoxBody(props: { box: MessageBox; session: DuetSession; onHide: 
       testId="duet-messagebox"
       actions={
         <>
-          {/* The dialog covers the page: the emergency stop must stay reachable. */}
+          {/* The dialog covers the page: the emergency stop must stay reachable (never focused by itself). */}
           <CommandButton
             runner={ctx.commands}
             snapshot={ctx.snapshot}
@@ -182,7 +183,12 @@ function MessageBoxBody(props: { box: MessageBox; session: DuetSession; onHide: 
           >
             Emergency stop
           </CommandButton>
-          <Button onClick={props.onHide} data-testid="duet-messagebox-hide">
+          {/* Focus starts here, or on the input: nothing is sent by an Enter the user did not mean. */}
+          <Button
+            onClick={props.onHide}
+            data-testid="duet-messagebox-hide"
+            data-autofocus={input ? undefined : true}
+          >
             {box.mode <= 1 ? 'Hide' : 'Later'}
           </Button>
           {showCancel && (
@@ -218,7 +224,7 @@ function MessageBoxBody(props: { box: MessageBox; session: DuetSession; onHide: 
         <Notice tone="warn">The machine is not connected: the answer cannot be sent now.</Notice>
       )}
       {box.mode === 4 && (
-        <div className="ui-row" role="radiogroup" aria-label="Choices">
+        <div className="ui-row" role="group" aria-label="Choices">
           {(box.choices ?? []).map((c, i) => (
             <Button
               key={i}
@@ -246,6 +252,7 @@ function MessageBoxBody(props: { box: MessageBox; session: DuetSession; onHide: 
               aria-invalid={error ? true : undefined}
               onChange={(e) => setText(e.target.value)}
               data-testid="duet-messagebox-input"
+              data-autofocus
               style={{ minHeight: 44, fontSize: 18 }}
             />
           )}
