@@ -121,8 +121,8 @@ export class G2coreClient {
     this.http = new HttpClient({ machineId, timeoutMs: opts.timeoutMs ?? 5000, parseError: parseG2Error });
   }
 
-  version(): Promise<VersionInfo> {
-    return this.http.json({ path: '/version' }, versionResponse);
+  version(signal?: AbortSignal): Promise<VersionInfo> {
+    return this.http.json({ path: '/version', signal }, versionResponse);
   }
 
   /** Status report; `filter` null values select keys, non-null values return only changed keys. */
@@ -134,23 +134,23 @@ export class G2coreClient {
   }
 
   /** Top-level objects of the machine (`shallow=true`). */
-  async groups(): Promise<string[]> {
-    const r = await this.http.json({ path: '/machine', query: { shallow: 'true' } }, shallowResponse);
+  async groups(signal?: AbortSignal): Promise<string[]> {
+    const r = await this.http.json({ path: '/machine', query: { shallow: 'true' }, signal }, shallowResponse);
     return Object.keys(r.value);
   }
 
   /** The machine tree, or the part a filter selects. Freestanding keys come back as scalars. */
-  async machine(filter?: FilterSpec): Promise<Record<string, SettingsGroup | Scalar>> {
+  async machine(filter?: FilterSpec, signal?: AbortSignal): Promise<Record<string, SettingsGroup | Scalar>> {
     const r = await this.http.json(
-      { path: '/machine', query: { filter: filter ? JSON.stringify(filter) : undefined } },
+      { path: '/machine', query: { filter: filter ? JSON.stringify(filter) : undefined }, signal },
       machineTreeResponse,
     );
     return r.value;
   }
 
   /** One group ("x", "1", "g54"). */
-  async group(name: string): Promise<SettingsGroup> {
-    const r = await this.machine({ [name]: null });
+  async group(name: string, signal?: AbortSignal): Promise<SettingsGroup> {
+    const r = await this.machine({ [name]: null }, signal);
     const g = r[name];
     if (typeof g !== 'object' || g === null) {
       throw new LinkError('protocol', `Unexpected answer from /machine: group "${name}" missing`, {

@@ -110,6 +110,7 @@ describe('G2coreSession through msw', () => {
     await settle();
     const gcode = ['G21', 'G90', 'G1 X10 F600', 'G1 X20', 'G1 X30', 'G1 X40'].join('\n');
     await s.ctx.commands.run(s.queueJob, { name: 'part.nc', gcode });
+    await settle(50); // the queue is read again right after the command (kick), not inside it
     const job = s.detail.getState().jobs[0]!;
     expect(job).toMatchObject({ name: 'part.nc', lines: 6 });
     await s.ctx.commands.run(s.runJob, { id: job.id, name: 'part.nc' });
@@ -145,6 +146,7 @@ describe('G2coreSession through msw', () => {
     expect(s.detail.getState().sr.stat).toBe(3);
     const file = new Blob(['G21 G90\nG0 X10\nG0 X900\n'], { type: 'text/plain' });
     await s.ctx.commands.run(s.queueJob, { name: 'too-far.nc', file });
+    await settle(50); // the queue is read again right after the command (kick), not inside it
     const job = s.detail.getState().jobs[0]!;
     expect(job).toMatchObject({ name: 'too-far.nc', lines: 3 });
     await s.ctx.commands.run(s.runJob, { id: job.id, name: 'too-far.nc' });
@@ -185,12 +187,12 @@ describe('G2coreSession through msw', () => {
   it('settings: edits, read-only and range refusals with the status text', async () => {
     const s = makeSession();
     await settle();
-    await s.loadGroups();
-    expect(s.settings.getState().groups).toContain('he1');
-    await s.loadGroup('x');
-    expect(s.settings.getState().values.x?.vm).toBe(40000);
+    // Settings are on-demand reads (query layer): the write makes the group stale, so the next
+    // read of it asks the controller again.
+    expect(await s.loadGroups()).toContain('he1');
+    expect((await s.loadGroup('x')).vm).toBe(40000);
     await s.ctx.commands.run(s.setSetting, { group: 'x', key: 'vm', value: 25000 });
-    expect(s.settings.getState().values.x?.vm).toBe(25000);
+    expect((await s.loadGroup('x')).vm).toBe(25000);
     expect(await s.client.getKey('x', 'vm')).toBe(25000);
     await expect(s.ctx.commands.run(s.setSetting, { group: 'g92', key: 'x', value: 1 })).rejects.toThrow(
       /read-only/,
@@ -301,6 +303,7 @@ describe('G2coreSession through msw', () => {
     await s.ctx.commands.run(s.kill, undefined);
     await settle();
     await s.ctx.commands.run(s.queueJob, { name: 'long.nc', gcode: 'G1 X100 F300' });
+    await settle(50); // the queue is read again right after the command (kick), not inside it
     const job = s.detail.getState().jobs[0]!;
     await s.ctx.commands.run(s.runJob, { id: job.id, name: 'long.nc' });
     await settle(1500);

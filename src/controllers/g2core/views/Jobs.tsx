@@ -1,6 +1,8 @@
 import { useState } from 'react';
 import { CommandButton, useStoreSelect } from '../../../fleet/react';
 import { Badge, Button, DataTable, Notice, Panel, ProgressBar, formatDateTime, type Tone } from '../../../ui';
+import { describeError } from '../../../fleet/errors';
+import { useJobs } from '../queries';
 import { describeStatus, type G2coreSession } from '../session';
 import type { Job, JobState } from '../wire';
 import { Controls, JobProgress, StatBadge } from './common';
@@ -19,11 +21,11 @@ const SAMPLE = ['G21 G90', 'G0 X10 Y10', 'G1 X60 F600', 'G1 Y60', 'G1 X10', 'G1 
 
 /** Run G-code files as jobs: upload or paste, the queue, progress (lines done / total). */
 export function JobsTab({ session }: { session: G2coreSession }) {
-  const { jobs, jobsError, notice } = useStoreSelect(session.detail, (d) => ({
-    jobs: d.jobs,
-    jobsError: d.jobsError,
-    notice: d.notice,
-  }));
+  const notice = useStoreSelect(session.detail, (d) => d.notice);
+  // The queue is an on-demand read (query key ['jobs']), shared with the session's slow poll.
+  const list = useJobs(session);
+  const jobs = list.data ?? [];
+  const jobsError = list.error ? describeError(list.error) : null;
   const { commands: runner, snapshot } = session.ctx;
   const [name, setName] = useState('part.nc');
   const [gcode, setGcode] = useState('');
@@ -108,8 +110,9 @@ export function JobsTab({ session }: { session: G2coreSession }) {
                 snapshot={snapshot}
                 command={session.moveJob}
                 args={{ id: j.id, position: i - 1 }}
+                label="Move up in the queue"
               >
-                ↑
+                <span aria-hidden="true">↑</span>
               </CommandButton>
             )}
             {i >= 0 && i < queued.length - 1 && (
@@ -118,8 +121,9 @@ export function JobsTab({ session }: { session: G2coreSession }) {
                 snapshot={snapshot}
                 command={session.moveJob}
                 args={{ id: j.id, position: i + 1 }}
+                label="Move down in the queue"
               >
-                ↓
+                <span aria-hidden="true">↓</span>
               </CommandButton>
             )}
             <CommandButton

@@ -1,23 +1,19 @@
-import { useEffect, useState } from 'react';
+import { useState } from 'react';
+import { describeError } from '../../../fleet/errors';
 import { CommandButton, useStoreSelect } from '../../../fleet/react';
 import { Button, EmptyState, Notice, Panel } from '../../../ui';
+import { useSettingsGroup, useSettingsGroups } from '../queries';
 import type { G2coreSession } from '../session';
 import { SECTION_ORDER, groupKind, groupTitle, keyMeta, parseInput, type KeyMeta } from '../settings-meta';
 import type { Scalar } from '../wire';
 
 /** The machine tree browsed from `GET /machine?shallow=true`; each group a form (supervisor). */
 export function SettingsTab({ session }: { session: G2coreSession }) {
-  const { groups, groupsError } = useStoreSelect(session.settings, (s) => ({
-    groups: s.groups,
-    groupsError: s.groupsError,
-  }));
+  // On-demand reads through the query layer (queries.ts): cached per machine, stale after a while.
+  const list = useSettingsGroups(session);
+  const groups = list.data ?? null;
+  const groupsError = list.error ? describeError(list.error) : null;
   const [selected, setSelected] = useState<string>('x');
-  useEffect(() => {
-    if (groups === null) void session.loadGroups();
-  }, [groups, session]);
-  useEffect(() => {
-    void session.loadGroup(selected);
-  }, [selected, session]);
 
   return (
     <div className="g2-settings" data-testid="g2-settings">
@@ -57,16 +53,16 @@ export function SettingsTab({ session }: { session: G2coreSession }) {
 }
 
 function GroupForm({ session, group }: { session: G2coreSession; group: string }) {
-  const { values, loading, error } = useStoreSelect(session.settings, (s) => ({
-    values: s.values[group],
-    loading: Boolean(s.loading[group]),
-    error: s.errors[group],
-  }));
+  // A settings write makes the group stale (the command's `invalidates`): it is read again.
+  const read = useSettingsGroup(session, group);
+  const values = read.data;
+  const loading = read.fetching;
+  const error = read.error ? describeError(read.error) : null;
   return (
     <Panel
       title={`${groupTitle(group)} (${group})`}
       actions={
-        <Button onClick={() => void session.loadGroup(group)} busy={loading}>
+        <Button onClick={read.refetch} busy={loading}>
           Reload
         </Button>
       }

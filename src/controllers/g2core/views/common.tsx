@@ -1,4 +1,5 @@
 import type { CommandDecl } from '../../../fleet/commands';
+import { useBlockedReason } from '../../../fleet/kernel';
 import { CommandButton, useSnapshot, useStoreSelect } from '../../../fleet/react';
 import { Notice, ProgressBar, formatDuration, formatNumber, type Tone } from '../../../ui';
 import { decodeEnum, statLabel } from '../codes';
@@ -194,10 +195,9 @@ export function WhyNot<A>({
   command: CommandDecl<A>;
   testId?: string;
 }) {
-  // Re-render when anything a predicate reads changes: link, state, jobs, tracked operations.
-  useSnapshot(session.ctx, (s) => `${s.link}|${s.activity}|${s.activityLabel}`);
-  useStoreSelect(session.detail, (d) => ({ jobs: d.jobs, ops: d.ops, stat: d.sr.stat }));
-  const reason = session.ctx.commands.blockedReason(command);
+  // Follows exactly what the command's availability reads: the runner, the snapshot and the
+  // stores the command names (defineCommands), so the words never lag behind the button.
+  const reason = useBlockedReason(session.ctx.commands, session.ctx.snapshot, command);
   if (!reason) return null;
   return (
     <div className="ui-muted" style={{ margin: '8px 0' }} data-testid={testId ?? `g2-whynot-${command.id}`}>
