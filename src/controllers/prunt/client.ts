@@ -45,8 +45,8 @@ export class PruntClient {
   // --- Configuration -------------------------------------------------------------------------
 
   /** `GET /config/schema`; also returns the raw text (the flat API's schema has no version: we hash it). */
-  async configSchema() {
-    const res = await this.http.raw({ path: '/config/schema', timeoutMs: 20_000 });
+  async configSchema(signal?: AbortSignal) {
+    const res = await this.http.raw({ path: '/config/schema', timeoutMs: 20_000, signal });
     const body = parseJsonLenient(res.text);
     if (body === NOT_JSON)
       throw new LinkError(
@@ -71,8 +71,8 @@ export class PruntClient {
    * `GET /config/values`. Never poll this: on the flat API every GET rewrites the config file on
    * the controller. Called when the editor opens and after a save.
    */
-  configValues() {
-    return this.http.json({ path: '/config/values', timeoutMs: 20_000 }, configValuesSchema);
+  configValues(signal?: AbortSignal) {
+    return this.http.json({ path: '/config/values', timeoutMs: 20_000, signal }, configValuesSchema);
   }
 
   /** `POST /config/values`: 200 even when rejected; the reply's Errors say what happened. */
@@ -85,12 +85,12 @@ export class PruntClient {
 
   // --- Status --------------------------------------------------------------------------------
 
-  statusSchema() {
-    return this.http.json({ path: '/status/schema' }, statusSchemaSchema);
+  statusSchema(signal?: AbortSignal) {
+    return this.http.json({ path: '/status/schema', signal }, statusSchemaSchema);
   }
 
-  statusValues() {
-    return this.http.json({ path: '/status/values' }, statusValuesSchema);
+  statusValues(signal?: AbortSignal) {
+    return this.http.json({ path: '/status/values', signal }, statusValuesSchema);
   }
 
   // --- Machine control -----------------------------------------------------------------------
@@ -137,8 +137,8 @@ export class PruntClient {
 
   // --- Files ---------------------------------------------------------------------------------
 
-  uploads() {
-    return this.http.json({ path: '/uploads/' }, uploadsSchema);
+  uploads(signal?: AbortSignal) {
+    return this.http.json({ path: '/uploads/', signal }, uploadsSchema);
   }
 
   /**
@@ -193,7 +193,10 @@ export class PruntClient {
   // --- Maintenance ---------------------------------------------------------------------------
 
   /** The last update check: `/update-check` (module API) or `/update_check` (flat API). 500 when it timed out. */
-  updateCheck(api: PruntApi) {
-    return this.http.json({ path: api === 'module' ? '/update-check' : '/update_check' }, updateCheckSchema);
+  updateCheck(api: PruntApi, signal?: AbortSignal) {
+    return this.http.json(
+      { path: api === 'module' ? '/update-check' : '/update_check', signal },
+      updateCheckSchema,
+    );
   }
 }

@@ -1,4 +1,5 @@
-import { createStore, type StoreApi } from 'zustand/vanilla';
+import type { StoreApi } from 'zustand/vanilla';
+import { createSharedStore } from '../../fleet/kernel';
 
 /**
  * Samples for the live chart: time (s since epoch) and one column per series, kept for
@@ -8,7 +9,7 @@ import { createStore, type StoreApi } from 'zustand/vanilla';
 export class History {
   t: number[] = [];
   cols = new Map<string, Array<number | null>>();
-  readonly store: StoreApi<{ version: number; names: string[] }> = createStore(() => ({
+  readonly store: StoreApi<{ version: number; names: string[] }> = createSharedStore(() => ({
     version: 0,
     names: [] as string[],
   }));

@@ -1,9 +1,12 @@
-import { useEffect, useState } from 'react';
+import { useState } from 'react';
 import { useStore } from 'zustand';
 import type { TabProps } from '../../../fleet/contract';
+import { describeError } from '../../../fleet/errors';
+import { useMachineQuery } from '../../../fleet/kernel';
 import { CommandButton } from '../../../fleet/react';
-import { Button, DataTable, formatBytes, Notice, Panel, ProgressBar } from '../../../ui';
+import { Button, DataTable, formatBytes, Notice, Panel, UploadStatus } from '../../../ui';
 import { safeExternalHref } from '../../../ui/safe-url';
+import { FILES_STALE_MS, PRUNT_KEYS } from '../queries';
 import type { PruntSession } from '../session';
 import './prunt.css';
 
@@ -50,23 +53,22 @@ function DownloadLink({ session, name }: { session: PruntSession; name: string }
 
 /** Files in `/uploads/`: list, upload with progress, download, run; and the update check. */
 export function FilesTab({ session }: TabProps<PruntSession>) {
-  const files = useStore(session.store, (s) => s.files);
-  const filesError = useStore(session.store, (s) => s.filesError);
-  const upload = useStore(session.store, (s) => s.upload);
+  // An on-demand read, fresh for a while; an upload invalidates it (the list refetches).
+  const list = useMachineQuery(
+    session.ctx.queries,
+    PRUNT_KEYS.files,
+    (signal) => session.client.uploads(signal),
+    { staleTimeMs: FILES_STALE_MS },
+  );
+  const files = list.data ?? null;
+  const upload = useStore(session.uploads.store);
   const update = useStore(session.store, (s) => s.update);
   const [picked, setPicked] = useState<File | null>(null);
   const run = session.ctx.commands;
-  useEffect(() => {
-    void session.refreshFiles();
-  }, [session]);
   return (
     <div className="pr-grid" data-testid="prunt-files">
-      <Panel
-        title="Files"
-        actions={<Button onClick={() => void session.refreshFiles()}>Refresh</Button>}
-        className="pr-wide"
-      >
-        {filesError && <Notice tone="bad">{filesError}</Notice>}
+      <Panel title="Files" actions={<Button onClick={list.refetch}>Refresh</Button>} className="pr-wide">
+        {list.error && <Notice tone="bad">{describeError(list.error)}</Notice>}
         <DataTable
           rows={files ?? []}
           rowKey={(f) => f}
@@ -116,23 +118,7 @@ export function FilesTab({ session }: TabProps<PruntSession>) {
             </CommandButton>
           )}
         </div>
-        {upload && (
-          <div style={{ marginTop: 8 }}>
-            <ProgressBar
-              value={upload.total ? upload.loaded / upload.total : null}
-              label={`Uploading ${upload.name}`}
-            />
-            <p className="ui-muted">
-              {upload.error ? (
-                <span style={{ color: 'var(--bad)' }}>{upload.error}</span>
-              ) : upload.done ? (
-                `${upload.name} uploaded.`
-              ) : (
-                `${formatBytes(upload.loaded)} of ${formatBytes(upload.total)}`
-              )}
-            </p>
-          </div>
-        )}
+        <UploadStatus state={upload} onCancel={() => session.uploads.cancel()} testId="prunt-upload" />
       </Panel>
       <Panel
         title="Software update"
