@@ -221,16 +221,16 @@ export class TouchcutClient {
   }
 
   /** `GET rest/v1/machine-info` — no login needed. */
-  machineInfo(): Promise<MachineInfoWire> {
-    return this.http.json({ path: `${REST}/machine-info` }, machineInfoSchema);
+  machineInfo(signal?: AbortSignal): Promise<MachineInfoWire> {
+    return this.http.json({ path: `${REST}/machine-info`, signal }, machineInfoSchema);
   }
 
-  status(units?: UnitsChoice): Promise<Status> {
+  status(units?: UnitsChoice, signal?: AbortSignal): Promise<Status> {
     const query = { units: unitsParam(units) };
-    return this.get('status', (path) => this.http.json({ path, query }, statusSchema));
+    return this.get('status', (path) => this.http.json({ path, query, signal }, statusSchema));
   }
 
-  stats(q: StatsQuery = {}): Promise<Stats> {
+  stats(q: StatsQuery = {}, signal?: AbortSignal): Promise<Stats> {
     const query: Record<string, QueryValue> = {
       'start-date': q.startDate,
       'end-before-date': q.endBeforeDate,
@@ -238,19 +238,21 @@ export class TouchcutClient {
       units: unitsParam(q.units),
     };
     // Stats of a long range are read from many daily .ini files: give it longer.
-    return this.get('stats', (path) => this.http.json({ path, query, timeoutMs: 30_000 }, statsSchema));
+    return this.get('stats', (path) =>
+      this.http.json({ path, query, timeoutMs: 30_000, signal }, statsSchema),
+    );
   }
 
   /** `fields`: comma separated, `*` wildcard per group ("axes.*,io.din"). */
-  monitor(fields?: readonly string[], units?: UnitsChoice): Promise<Monitor> {
+  monitor(fields?: readonly string[], units?: UnitsChoice, signal?: AbortSignal): Promise<Monitor> {
     const query: Record<string, QueryValue> = {
       fields: fields && fields.length > 0 ? fields.join(',') : undefined,
       units: unitsParam(units),
     };
-    return this.get('monitor', (path) => this.http.json({ path, query }, monitorSchema));
+    return this.get('monitor', (path) => this.http.json({ path, query, signal }, monitorSchema));
   }
 
-  programs(q: ProgramsQuery = {}): Promise<OpenData> {
+  programs(q: ProgramsQuery = {}, signal?: AbortSignal): Promise<OpenData> {
     const query: Record<string, QueryValue> = {
       offset: q.offset,
       limit: q.limit,
@@ -258,17 +260,17 @@ export class TouchcutClient {
       fields: q.fields,
       units: unitsParam(q.units),
     };
-    return this.get('programs', (path) => this.http.json({ path, query }, openDataSchema));
+    return this.get('programs', (path) => this.http.json({ path, query, signal }, openDataSchema));
   }
 
-  unloader(q: UnloaderQuery = {}): Promise<OpenData> {
+  unloader(q: UnloaderQuery = {}, signal?: AbortSignal): Promise<OpenData> {
     const query: Record<string, QueryValue> = {
       history: q.history ? 'true' : undefined,
       'start-date': q.startDate,
       'end-before-date': q.endBeforeDate,
       units: unitsParam(q.units),
     };
-    return this.get('unloader', (path) => this.http.json({ path, query }, openDataSchema));
+    return this.get('unloader', (path) => this.http.json({ path, query, signal }, openDataSchema));
   }
 
   /**

@@ -1,6 +1,8 @@
 import { afterEach, beforeEach, describe, expect, it, vi } from 'vitest';
 import { LinkError } from '../../fleet/errors';
-import type { Visibility } from '../../fleet/link';
+import { createContext } from '../../fleet/fleet';
+import { KernelSession, Lifecycle } from '../../fleet/kernel';
+import { alwaysVisible, type Visibility } from '../../fleet/link';
 import type { TouchcutClient } from './client';
 import {
   mergeChanged,
@@ -8,6 +10,7 @@ import {
   ScreenshotFeed,
   SCREENSHOT_MIN_GAP_MS,
   THUMBNAIL_INTERVAL_MS,
+  type DeclarePoll,
   type FeedHost,
 } from './feeds';
 
@@ -29,8 +32,11 @@ function fakeVisibility() {
 }
 
 function host(client: Partial<TouchcutClient>, visibility = fakeVisibility(), extra: Partial<FeedHost> = {}) {
+  const life = new Lifecycle();
+  life.start();
   return {
     visibility,
+    life,
     h: {
       client: client as TouchcutClient,
       visibility,
@@ -38,9 +44,25 @@ function host(client: Partial<TouchcutClient>, visibility = fakeVisibility(), ex
       units: () => 'default' as const,
       canRequest: () => true,
       authFailed: vi.fn(),
+      life,
       ...extra,
     } satisfies FeedHost,
   };
+}
+
+/** The smallest kernel session: feeds declare their polls on it, as TouchcutSession does. */
+class Kernel extends KernelSession {
+  readonly commands = {};
+  readonly declare: DeclarePoll = (spec) => this.poll(spec);
+}
+
+function kernel(): Kernel {
+  return new Kernel(
+    createContext(
+      { id: 'tc', name: 'Plasma', kind: 'touchcut', simulated: true },
+      { visibility: alwaysVisible },
+    ),
+  );
 }
 
 beforeEach(() => vi.useFakeTimers());
@@ -124,17 +146,23 @@ describe('monitor feed', () => {
       axes: [],
       units: 'metric',
     }));
-    const feed = new MonitorFeed(host({ monitor }).h);
+    const k = kernel();
+    const feed = new MonitorFeed(host({ monitor }, fakeVisibility(), { life: k.life }).h, k.declare);
+    k.start();
     feed.setFields(['axes.*', 'io.din']);
+    await vi.advanceTimersByTimeAsync(1000);
+    expect(monitor).not.toHaveBeenCalled(); // nobody watches yet
     const release = feed.acquire();
     await vi.advanceTimersByTimeAsync(2000);
     expect(monitor.mock.calls.length).toBeGreaterThanOrEqual(4);
     expect(monitor.mock.calls.length).toBeLessThanOrEqual(5);
-    expect(monitor).toHaveBeenLastCalledWith(['axes.*', 'io.din'], 'default');
+    expect(monitor).toHaveBeenLastCalledWith(['axes.*', 'io.din'], 'default', expect.any(AbortSignal));
+    expect(feed.store.getState().data?.units).toBe('metric');
     release();
     const n = monitor.mock.calls.length;
     await vi.advanceTimersByTimeAsync(5000);
     expect(monitor.mock.calls.length).toBe(n);
+    k.stop();
   });
 });
 

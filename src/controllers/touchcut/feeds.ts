@@ -1,30 +1,51 @@
-import { createStore, type StoreApi } from 'zustand/vanilla';
-import { describeError, LinkError } from '../../fleet/errors';
-import { Poller, type Visibility } from '../../fleet/link';
+import type { StoreApi } from 'zustand/vanilla';
+import { describeError } from '../../fleet/errors';
+import { createSharedStore, type Lifecycle, type PollSpec } from '../../fleet/kernel';
+import type { Poller, Visibility } from '../../fleet/link';
 import type { TouchcutClient } from './client';
 import { isUnauthorized } from './client';
-import type { Monitor, OpenData, Stats, UnitsChoice } from './wire';
+import type { Monitor, UnitsChoice } from './wire';
 
 /**
- * On-demand feeds of a TouchCut session: monitor (axes / I/O), screenshot, stats, programs and
- * unloader. Each has its own vanilla store; views acquire a feed while they are on screen.
+ * The live feeds of a TouchCut session, shown while a view is on screen: the monitor (axes / I/O,
+ * a kernel poll) and the screenshot (its own limiter: the controller serves a new image at most
+ * once a second). Both run only within the session's run: their timers are the lifecycle's and
+ * an answer that arrives after stop is dropped. On-demand reads (statistics, programs,
+ * unloader) are queries: queries.ts.
  */
+
+export {
+  mergeChanged,
+  OpenDataFeed,
+  PROGRAMS_REFRESH_MS,
+  StatsLoader,
+  type OpenDataState,
+  type StatsRequest,
+  type StatsState,
+} from './queries';
 
 export interface FeedHost {
   client: TouchcutClient;
   visibility: Visibility;
   now: () => number;
   units: () => UnitsChoice;
-  /** False while the machine needs a login or the session is stopped: feeds send nothing. */
+  /** False while the machine needs a login: feeds send nothing. */
   canRequest: () => boolean;
   /** A 401: the session decides (needs login). */
   authFailed: (e: unknown) => void;
+  /** The session's lifecycle: timers are cleared on stop, answers of an ended run are dropped. */
+  life: Lifecycle;
 }
+
+/** The session's `poll` (KernelSession): declared once, started and stopped with the session. */
+export type DeclarePoll = <T>(spec: PollSpec<T>) => Poller;
 
 // ---------------------------------------------------------------------------------------------
 // monitor
 
 export const MONITOR_INTERVAL_MS = 500;
+/** Nobody watching: the poll only looks whether someone does (no request). */
+const MONITOR_IDLE_MS = 10_000;
 
 export interface MonitorState {
   data: Monitor | null;
@@ -34,64 +55,57 @@ export interface MonitorState {
 }
 
 export class MonitorFeed {
-  readonly store: StoreApi<MonitorState> = createStore<MonitorState>(() => ({
+  readonly store: StoreApi<MonitorState> = createSharedStore<MonitorState>(() => ({
     data: null,
     at: null,
     error: null,
     fields: [],
   }));
+  /** Requests sent (tests, benchmarks). */
+  polls = 0;
   private users = 0;
+  private failures = 0;
   private readonly poller: Poller;
 
-  constructor(private readonly host: FeedHost) {
-    this.poller = new Poller({
-      run: () => this.poll(),
-      // About twice a second while visible (the Poller slows to ≥ 10 s while the page is hidden).
-      intervalMs: () => MONITOR_INTERVAL_MS,
-      visibility: host.visibility,
-      onError: (e) => {
-        if (isUnauthorized(e)) this.host.authFailed(e);
-        this.store.setState({ error: describeError(e) });
+  constructor(host: FeedHost, poll: DeclarePoll) {
+    this.poller = poll({
+      name: 'monitor',
+      // Only while a view shows it, for the fields on screen, and never while a login is needed.
+      when: () => this.users > 0 && this.store.getState().fields.length > 0 && host.canRequest(),
+      read: (signal) => {
+        this.polls++;
+        return host.client.monitor(this.store.getState().fields, host.units(), signal);
       },
-      retryDelayMs: (n) => Math.min(10_000, 1000 * 2 ** (n - 1)),
+      apply: (data) => {
+        this.failures = 0;
+        this.store.setState({ data, at: host.now(), error: null });
+      },
+      // About twice a second while watched (the Poller slows to ≥ 10 s while the page is hidden).
+      intervalMs: () => (this.users > 0 ? MONITOR_INTERVAL_MS : MONITOR_IDLE_MS),
+      failed: (e) => {
+        if (isUnauthorized(e)) host.authFailed(e);
+        this.store.setState({ error: describeError(e) });
+        return Math.min(10_000, 1000 * 2 ** this.failures++);
+      },
     });
   }
 
   /** `fields` for the request ("axes.*", "io.din", …): only what is on screen. */
   setFields(fields: string[]): void {
-    const prev = this.store.getState().fields;
-    if (prev.length === fields.length && prev.every((f, i) => f === fields[i])) return;
+    const before = this.store.getState();
     this.store.setState({ fields });
-    this.poller.kick();
+    // An equal list keeps the state (structural sharing): no extra request.
+    if (this.store.getState() !== before) this.poller.kick();
   }
 
   acquire(): () => void {
-    this.users++;
-    if (this.users === 1) this.poller.start(0);
+    if (++this.users === 1) this.poller.kick();
     let released = false;
     return () => {
       if (released) return;
       released = true;
       this.users--;
-      if (this.users === 0) this.poller.stop();
     };
-  }
-
-  get polls(): number {
-    return this.poller.started;
-  }
-
-  stop(): void {
-    this.users = 0;
-    this.poller.stop();
-  }
-
-  private async poll(): Promise<void> {
-    if (!this.host.canRequest()) return;
-    const { fields } = this.store.getState();
-    if (fields.length === 0) return;
-    const data = await this.host.client.monitor(fields, this.host.units());
-    this.store.setState({ data, at: this.host.now(), error: null });
   }
 }
 
@@ -102,6 +116,9 @@ export class MonitorFeed {
 export const SCREENSHOT_MIN_GAP_MS = 1000;
 /** Fleet tile thumbnails: at most every 10 s. */
 export const THUMBNAIL_INTERVAL_MS = 10_000;
+/** After a failed request, or while the machine needs a login, look again after this long. */
+const SCREENSHOT_RETRY_MS = 5000;
+const SCREENSHOT_WAIT_MS = 2000;
 
 export interface ScreenshotState {
   blob: Blob | null;
@@ -113,10 +130,11 @@ export interface ScreenshotState {
 
 /**
  * One screenshot stream per machine, shared by every viewer (machine page, fleet tile): at most
- * one request per second, never two at once, none while the page is hidden or nobody watches.
+ * one request per second (start to start, so a slow answer does not stretch the rate), never two
+ * at once, none while the page is hidden, nobody watches or the session is stopped.
  */
 export class ScreenshotFeed {
-  readonly store: StoreApi<ScreenshotState> = createStore<ScreenshotState>(() => ({
+  readonly store: StoreApi<ScreenshotState> = createSharedStore<ScreenshotState>(() => ({
     blob: null,
     at: null,
     error: null,
@@ -139,15 +157,14 @@ export class ScreenshotFeed {
   subscribe(intervalMs = SCREENSHOT_MIN_GAP_MS): () => void {
     const id = ++this.nextId;
     this.subs.set(id, Math.max(SCREENSHOT_MIN_GAP_MS, intervalMs));
-    if (!this.unsubscribeVis) this.unsubscribeVis = this.host.visibility.subscribe(() => this.schedule());
+    this.unsubscribeVis ??= this.host.visibility.subscribe(() => this.schedule());
     this.schedule();
     return () => {
       this.subs.delete(id);
-      if (this.subs.size === 0) {
-        this.clear();
-        this.unsubscribeVis?.();
-        this.unsubscribeVis = null;
-      } else this.schedule();
+      if (this.subs.size > 0) return this.schedule();
+      this.later(null);
+      this.unsubscribeVis?.();
+      this.unsubscribeVis = null;
     };
   }
 
@@ -155,50 +172,33 @@ export class ScreenshotFeed {
     return this.subs.size > 0;
   }
 
-  /** Retry soon (after login, after a reconnect). */
+  /** Look now (after a login, on start). */
   kick(): void {
     this.schedule();
   }
 
-  stop(): void {
-    this.subs.clear();
-    this.clear();
-    this.unsubscribeVis?.();
-    this.unsubscribeVis = null;
-  }
-
-  private interval(): number {
-    return Math.min(...this.subs.values());
-  }
-
-  private clear(): void {
-    if (this.timer) clearTimeout(this.timer);
-    this.timer = null;
+  /** Replaces the pending timer (a timer of the session's run: none once it stopped). */
+  private later(fn: (() => void) | null, ms = 0): void {
+    this.host.life.clearTimeout(this.timer);
+    this.timer = fn && this.host.life.setTimeout(fn, ms);
   }
 
   private schedule(): void {
-    this.clear();
-    if (this.subs.size === 0 || this.inFlight || this.host.visibility.hidden()) return;
+    if (this.subs.size === 0 || this.inFlight || this.host.visibility.hidden()) return this.later(null);
     const now = this.host.now();
-    const due = this.lastStart === null ? now : this.lastStart + this.interval();
-    const earliest = this.lastStart === null ? now : this.lastStart + SCREENSHOT_MIN_GAP_MS;
-    const delay = Math.max(0, due - now, earliest - now);
-    this.timer = setTimeout(() => void this.fetch(), delay);
+    const gap = Math.min(...this.subs.values());
+    const delay = this.lastStart === null ? 0 : Math.max(0, this.lastStart + gap - now);
+    this.later(() => void this.fetch(), delay);
   }
 
   private async fetch(): Promise<void> {
     this.timer = null;
     if (this.subs.size === 0 || this.inFlight || this.host.visibility.hidden()) return;
-    if (!this.host.canRequest()) {
-      // Not connected / needs login: look again later (no request is sent meanwhile).
-      this.timer = setTimeout(() => this.schedule(), 2000);
-      return;
-    }
+    // Needs a login: look again later (no request is sent meanwhile).
+    if (!this.host.canRequest()) return this.later(() => this.schedule(), SCREENSHOT_WAIT_MS);
     const now = this.host.now();
-    if (this.lastStart !== null && now - this.lastStart < SCREENSHOT_MIN_GAP_MS) {
-      this.schedule();
-      return;
-    }
+    if (this.lastStart !== null && now - this.lastStart < SCREENSHOT_MIN_GAP_MS) return this.schedule();
+    const run = this.host.life.current();
     this.inFlight = true;
     this.lastStart = now;
     this.requests++;
@@ -207,185 +207,20 @@ export class ScreenshotFeed {
     this.store.setState({ loading: true });
     let failed = false;
     try {
-      const shot = await this.host.client.screenshot();
-      this.store.setState({ blob: shot.blob, at: this.host.now(), error: null, loading: false });
+      const shot = await this.host.client.screenshot(run.signal);
+      if (run.alive())
+        this.store.setState({ blob: shot.blob, at: this.host.now(), error: null, loading: false });
     } catch (e) {
       failed = true;
-      if (isUnauthorized(e)) this.host.authFailed(e);
-      this.store.setState({ error: describeError(e), loading: false });
+      if (run.alive()) {
+        if (isUnauthorized(e)) this.host.authFailed(e);
+        this.store.setState({ error: describeError(e), loading: false });
+      }
     } finally {
       this.inFlight = false;
     }
-    if (failed) {
-      // Back off: do not hammer a failing controller with one request per second.
-      this.clear();
-      if (this.subs.size > 0 && !this.host.visibility.hidden())
-        this.timer = setTimeout(() => this.schedule(), 5000);
-      return;
-    }
-    this.schedule();
-  }
-}
-
-// ---------------------------------------------------------------------------------------------
-// stats
-
-export interface StatsRequest {
-  startDate: string;
-  endBeforeDate: string;
-  condensed: boolean;
-}
-
-export interface StatsState {
-  request: StatsRequest | null;
-  data: Stats | null;
-  at: number | null;
-  loading: boolean;
-  error: string | null;
-}
-
-export class StatsLoader {
-  readonly store: StoreApi<StatsState> = createStore<StatsState>(() => ({
-    request: null,
-    data: null,
-    at: null,
-    loading: false,
-    error: null,
-  }));
-  private seq = 0;
-
-  constructor(private readonly host: FeedHost) {}
-
-  async load(req: StatsRequest): Promise<void> {
-    const seq = ++this.seq;
-    this.store.setState({ request: req, loading: true, error: null });
-    try {
-      if (!this.host.canRequest()) throw new LinkError('offline', 'The machine is not connected');
-      const data = await this.host.client.stats({ ...req, units: this.host.units() });
-      if (seq !== this.seq) return;
-      this.store.setState({ data, at: this.host.now(), loading: false });
-    } catch (e) {
-      if (seq !== this.seq) return;
-      if (isUnauthorized(e)) this.host.authFailed(e);
-      this.store.setState({ loading: false, error: describeError(e) });
-    }
-  }
-}
-
-// ---------------------------------------------------------------------------------------------
-// programs and unloader ("interface subject to change": generic data)
-
-export interface OpenDataState {
-  data: OpenData | null;
-  at: number | null;
-  loading: boolean;
-  error: string | null;
-  offset: number;
-  limit: number;
-  history: { startDate: string; endBeforeDate: string } | null;
-}
-
-/** Deep merge for `onlyChangedData` refreshes: objects merge key by key, arrays and values replace. */
-export function mergeChanged(base: unknown, changed: unknown): unknown {
-  if (!base || !changed || typeof base !== 'object' || typeof changed !== 'object') return changed;
-  if (Array.isArray(base) || Array.isArray(changed)) return changed;
-  const out: Record<string, unknown> = { ...(base as Record<string, unknown>) };
-  for (const [k, v] of Object.entries(changed as Record<string, unknown>)) out[k] = mergeChanged(out[k], v);
-  return out;
-}
-
-export const PROGRAMS_REFRESH_MS = 5000;
-
-export class OpenDataFeed {
-  readonly store: StoreApi<OpenDataState> = createStore<OpenDataState>(() => ({
-    data: null,
-    at: null,
-    loading: false,
-    error: null,
-    offset: 0,
-    limit: 25,
-    history: null,
-  }));
-  private users = 0;
-  private readonly poller: Poller;
-  private full = false;
-
-  constructor(
-    private readonly host: FeedHost,
-    private readonly kind: 'programs' | 'unloader',
-  ) {
-    this.poller = new Poller({
-      run: () => this.poll(),
-      intervalMs: () => PROGRAMS_REFRESH_MS,
-      visibility: host.visibility,
-      onError: (e) => {
-        if (isUnauthorized(e)) this.host.authFailed(e);
-        this.store.setState({ error: describeError(e), loading: false });
-      },
-    });
-  }
-
-  acquire(): () => void {
-    this.users++;
-    if (this.users === 1) {
-      this.full = false;
-      this.poller.start(0);
-    }
-    let released = false;
-    return () => {
-      if (released) return;
-      released = true;
-      this.users--;
-      if (this.users === 0) this.poller.stop();
-    };
-  }
-
-  page(offset: number, limit: number): void {
-    this.store.setState({ offset: Math.max(0, offset), limit });
-    this.reload();
-  }
-
-  setHistory(h: { startDate: string; endBeforeDate: string } | null): void {
-    this.store.setState({ history: h });
-    this.reload();
-  }
-
-  reload(): void {
-    this.full = false;
-    this.poller.kick();
-  }
-
-  stop(): void {
-    this.users = 0;
-    this.poller.stop();
-  }
-
-  private async poll(): Promise<void> {
-    if (!this.host.canRequest()) return;
-    const s = this.store.getState();
-    const units = this.host.units();
-    if (this.kind === 'programs') {
-      const changedOnly = this.full && s.data !== null;
-      this.store.setState({ loading: !changedOnly });
-      const data = await this.host.client.programs({
-        offset: s.offset,
-        limit: s.limit,
-        onlyChangedData: changedOnly,
-        units,
-      });
-      this.full = true;
-      const merged = changedOnly ? (mergeChanged(this.store.getState().data, data) as OpenData) : data;
-      this.store.setState({ data: merged, at: this.host.now(), loading: false, error: null });
-    } else {
-      this.store.setState({ loading: !this.full });
-      const data = await this.host.client.unloader({
-        history: s.history !== null,
-        startDate: s.history?.startDate,
-        endBeforeDate: s.history?.endBeforeDate,
-        units,
-      });
-      this.full = true;
-      this.store.setState({ data, at: this.host.now(), loading: false, error: null });
-    }
+    // Back off after a failure: no request per second to a failing controller.
+    if (failed && run.alive()) this.later(() => this.schedule(), SCREENSHOT_RETRY_MS);
+    else this.schedule();
   }
 }

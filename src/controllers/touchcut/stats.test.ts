@@ -4,13 +4,7 @@ import { simulatorHandlers } from '../../fleet/msw';
 import { TouchcutClient } from './client';
 import { SIM_LOG_DAYS, SIM_MONITOR_API_KEY, TouchcutSimulator } from './sim/simulator';
 import { addDays, daysIn, simDay } from './sim/statsgen';
-import {
-  consumableTotals,
-  presetRange,
-  sessionsByUser,
-  toolTotalsOfSessions,
-  totalsRows,
-} from './stats';
+import { consumableTotals, presetRange, sessionsByUser, toolTotalsOfSessions, totalsRows } from './stats';
 import { viaGateway } from './testkit';
 
 const NOW = Date.parse('2026-03-18T12:00:00Z'); // a Wednesday

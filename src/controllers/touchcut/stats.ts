@@ -270,8 +270,7 @@ export function duration(seconds: number): string {
 /** Length in the answer's unit: mm shown as metres for large values. */
 export function length(value: number, units: string | undefined): string {
   const imperial = (units ?? '').toLowerCase().startsWith('imp');
-  if (imperial)
-    return value >= 1200 ? formatDecimal(value / 12, 1, 'ft') : formatNumber(value, 1, 'in');
+  if (imperial) return value >= 1200 ? formatDecimal(value / 12, 1, 'ft') : formatNumber(value, 1, 'in');
   return value >= 10_000 ? formatDecimal(value / 1000, 1, 'm') : formatNumber(value, 0, 'mm');
 }
 

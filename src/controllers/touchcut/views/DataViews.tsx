@@ -1,8 +1,8 @@
-import { useEffect, useState } from 'react';
+import { useState } from 'react';
 import type { TabProps } from '../../../fleet/contract';
-import { useNow, useStoreSelect } from '../../../fleet/react';
+import { useNow } from '../../../fleet/react';
 import { Button, EmptyState, Field, Notice, Panel, formatAge } from '../../../ui';
-import type { OpenDataFeed } from '../feeds';
+import { useOpenData } from '../queries';
 import type { TouchcutSession } from '../session';
 import { localDate, presetRange } from '../stats';
 import { DataTree } from './common';
@@ -13,29 +13,16 @@ const SUBJECT_TO_CHANGE = (
   </p>
 );
 
-function useFeed(feed: OpenDataFeed) {
-  useEffect(() => feed.acquire(), [feed]);
-  return useStoreSelect(feed.store, (s) => ({
-    data: s.data,
-    at: s.at,
-    loading: s.loading,
-    error: s.error,
-    offset: s.offset,
-    limit: s.limit,
-    history: s.history,
-  }));
-}
-
 /** `rest/v1/programs` with `offset`/`limit` pages; refreshes ask only for changed data. */
 export function ProgramsView({ session }: TabProps<TouchcutSession>) {
-  const s = useFeed(session.programs);
+  const s = useOpenData(session.programs);
   const now = useNow(1000);
   const total = s.data && !Array.isArray(s.data) && typeof s.data.total === 'number' ? s.data.total : null;
   return (
     <div className="tc-stack" data-testid="touchcut-programs">
       <div className="ui-row">
         <Button disabled={s.offset === 0} onClick={() => session.programs.page(s.offset - s.limit, s.limit)}>
-          ← Previous
+          <span aria-hidden="true">←</span> Previous
         </Button>
         <span>
           {total === 0
@@ -47,7 +34,7 @@ export function ProgramsView({ session }: TabProps<TouchcutSession>) {
           disabled={total !== null && s.offset + s.limit >= total}
           onClick={() => session.programs.page(s.offset + s.limit, s.limit)}
         >
-          Next →
+          Next <span aria-hidden="true">→</span>
         </Button>
         <label className="tc-units">
           <span className="ui-muted small">Per page</span>
@@ -81,7 +68,7 @@ export function ProgramsView({ session }: TabProps<TouchcutSession>) {
 
 /** `rest/v1/unloader`: pallet stations, and the unloaded-parts history for a date range. */
 export function UnloaderView({ session }: TabProps<TouchcutSession>) {
-  const s = useFeed(session.unloader);
+  const s = useOpenData(session.unloader);
   const now = useNow(1000);
   const today = localDate(new Date());
   const [range, setRange] = useState(() => s.history ?? presetRange('today', today));

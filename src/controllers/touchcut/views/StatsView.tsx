@@ -1,8 +1,16 @@
 import { useEffect, useMemo, useState } from 'react';
 import type { TabProps } from '../../../fleet/contract';
-import { useStoreSelect } from '../../../fleet/react';
-import { Button, DataTable, EmptyState, Field, Notice, Panel, formatPercent, type CsvColumn } from '../../../ui';
-import type { StatsRequest } from '../feeds';
+import {
+  Button,
+  DataTable,
+  EmptyState,
+  Field,
+  Notice,
+  Panel,
+  formatPercent,
+  type CsvColumn,
+} from '../../../ui';
+import { useStats, type StatsRequest } from '../queries';
 import type { TouchcutSession } from '../session';
 import {
   consumableTotals,
@@ -25,20 +33,14 @@ import {
   type ConsumableTotal,
 } from '../stats';
 import type { Consumable, ErrorRecord, ProgramRun } from '../wire';
-import { CsvButton, num, UnitsPicker, useUnits } from './common';
+import { CsvButton, num, UnitsPicker } from './common';
 
 /**
  * Production statistics (`rest/v1/stats`): pick a range (start date, end before date — the
  * machine clips it to its logging range), condensed or not; every table exports CSV.
  */
 export function StatsView({ session }: TabProps<TouchcutSession>) {
-  const { data, loading, error, request } = useStoreSelect(session.stats.store, (s) => ({
-    data: s.data,
-    loading: s.loading,
-    error: s.error,
-    request: s.request,
-  }));
-  const units = useUnits();
+  const { data, loading, error, request } = useStats(session.stats);
   const today = localDate(new Date());
   const [form, setForm] = useState<StatsRequest>(
     () => request ?? { ...presetRange('yesterday', today), condensed: false },
@@ -47,11 +49,12 @@ export function StatsView({ session }: TabProps<TouchcutSession>) {
     setForm(r);
     void session.stats.load(r);
   };
-  // First visit: load yesterday straight away (what a supervisor looks at every morning). Reload on a units change.
+  // First visit: load yesterday straight away (what a supervisor looks at every morning). The
+  // units are part of the read's key: a units change reads again by itself.
+  const [first] = useState(form);
   useEffect(() => {
-    void session.stats.load(session.stats.store.getState().request ?? form);
-    // eslint-disable-next-line react-hooks/exhaustive-deps
-  }, [session, units]);
+    if (!session.stats.store.getState().request) void session.stats.load(first);
+  }, [session, first]);
   const preset = (p: RangePreset) => load({ ...presetRange(p, today), condensed: form.condensed });
   const valid = form.startDate !== '' && form.endBeforeDate !== '' && form.startDate < form.endBeforeDate;
 
@@ -142,11 +145,7 @@ export function StatsView({ session }: TabProps<TouchcutSession>) {
 }
 
 function StatsBody({ session }: TabProps<TouchcutSession>) {
-  const { data, request, loading } = useStoreSelect(session.stats.store, (s) => ({
-    data: s.data,
-    request: s.request,
-    loading: s.loading,
-  }));
+  const { data, request, loading } = useStats(session.stats);
   const derived = useMemo(() => {
     if (!data) return null;
     const users = sessionsByUser(data.sessions);

@@ -129,7 +129,10 @@ export function StatusView({ session }: TabProps<TouchcutSession>) {
               ['Running for', formatDuration(snap.job?.elapsed)],
               ['Remaining (estimate)', formatDuration(snap.job?.remaining)],
               ['Feed rate', `${num(status.feedrate, 1)} ${feed}`],
-              ['Feed override', status.feedOverride === undefined ? '—' : formatPercent(status.feedOverride / 100)],
+              [
+                'Feed override',
+                status.feedOverride === undefined ? '—' : formatPercent(status.feedOverride / 100),
+              ],
             ]}
           />
         </Panel>

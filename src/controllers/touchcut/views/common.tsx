@@ -1,6 +1,14 @@
 import { useEffect, useState, type ReactNode } from 'react';
 import { useStore } from 'zustand';
-import { Badge, Button, csvFromColumns, downloadCsv, formatDecimal, type CsvColumn } from '../../../ui';
+import {
+  Badge,
+  Button,
+  ScrollRegion,
+  csvFromColumns,
+  downloadCsv,
+  formatDecimal,
+  type CsvColumn,
+} from '../../../ui';
 import { setTouchcutUnits, touchcutUnits } from '../session';
 import { UNITS_CHOICES, type UnitsChoice } from '../wire';
 
@@ -54,7 +62,9 @@ export function CsvButton<T>(props: { name: string; columns: readonly CsvColumn<
       small
       disabled={props.rows.length === 0}
       // A BOM: these files are opened in spreadsheets (operator and program names are not ASCII-only).
-      onClick={() => downloadCsv(`${props.name}.csv`, csvFromColumns(props.columns, props.rows, { bom: true }))}
+      onClick={() =>
+        downloadCsv(`${props.name}.csv`, csvFromColumns(props.columns, props.rows, { bom: true }))
+      }
       data-testid={`csv-${props.name.replace(/[^a-z0-9]+/gi, '-').toLowerCase()}`}
     >
       CSV
@@ -116,7 +126,7 @@ export function DataTree(props: { value: unknown; depth?: number; label?: string
     if (v.every(isRecord)) {
       const cols = [...new Set(v.flatMap((r) => Object.keys(r)))].slice(0, 16);
       return (
-        <div className="ui-table-wrap">
+        <ScrollRegion className="ui-table-wrap" label={props.label ?? 'Table'}>
           <table className="ui-table">
             <thead>
               <tr>
@@ -139,7 +149,7 @@ export function DataTree(props: { value: unknown; depth?: number; label?: string
               ))}
             </tbody>
           </table>
-        </div>
+        </ScrollRegion>
       );
     }
     return (

@@ -108,7 +108,9 @@ describe('touchcut views', () => {
     render(<ScreenView session={session} />);
     await screen.findByTestId('screen-image');
     expect(screen.getByTestId('screen-age').textContent).toMatch(/image from \d+ sec\.? ago/);
-    act(() => fireEvent.click(screen.getByTestId('screen-pause')));
+    act(() => {
+      fireEvent.click(screen.getByTestId('screen-pause'));
+    });
     expect(session.screenshot.watching).toBe(false);
     expect(screen.getByTestId('screen-age').textContent).toMatch(/^Paused/);
   });
