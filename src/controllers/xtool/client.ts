@@ -30,7 +30,9 @@ import {
 /**
  * Typed client for the xTool D-series HTTP API: one method per endpoint of the document. All
  * requests go through one serialized HttpClient: the laser is an ESP32 that must never see two
- * requests at once. Methods that change the machine take `commandId` (→ X-Shopdeck-Command).
+ * requests at once. Methods that change the machine take `commandId` (→ X-Shopdeck-Command);
+ * reads take the `signal` of the session's run or of the query that asked, so a stop (or a view
+ * that went away) cancels them, and one cancelled while waiting in the lane is never sent.
  */
 
 /** Upload targets of POST /upload: filetype 0 → /frame.gcode, 1 → /tmp.gcode, or a full path. */
@@ -70,50 +72,50 @@ export class XtoolClient {
 
   // --- reads --------------------------------------------------------------------------------
 
-  ping() {
-    return this.json({ path: '/ping' }, pingSchema);
+  ping(signal?: AbortSignal) {
+    return this.json({ path: '/ping', signal }, pingSchema);
   }
-  progress() {
-    return this.json({ path: '/progress' }, progressSchema);
+  progress(signal?: AbortSignal) {
+    return this.json({ path: '/progress', signal }, progressSchema);
   }
-  machineType() {
-    return this.json({ path: '/getmachinetype' }, machineTypeSchema);
+  machineType(signal?: AbortSignal) {
+    return this.json({ path: '/getmachinetype', signal }, machineTypeSchema);
   }
-  laserPowerType() {
-    return this.json({ path: '/getlaserpowertype' }, laserPowerTypeSchema);
+  laserPowerType(signal?: AbortSignal) {
+    return this.json({ path: '/getlaserpowertype', signal }, laserPowerTypeSchema);
   }
-  laserPowerInfo() {
-    return this.json({ path: '/getlaserpowerinfo' }, laserPowerInfoSchema);
+  laserPowerInfo(signal?: AbortSignal) {
+    return this.json({ path: '/getlaserpowerinfo', signal }, laserPowerInfoSchema);
   }
-  peripheryStatus() {
-    return this.json({ path: '/peripherystatus' }, peripheryStatusSchema);
+  peripheryStatus(signal?: AbortSignal) {
+    return this.json({ path: '/peripherystatus', signal }, peripheryStatusSchema);
   }
-  mac() {
-    return this.system('mac', macSchema);
+  mac(signal?: AbortSignal) {
+    return this.system('mac', macSchema, signal);
   }
-  version() {
-    return this.system('version', versionSchema);
+  version(signal?: AbortSignal) {
+    return this.system('version', versionSchema, signal);
   }
-  workingSta() {
-    return this.system('get_working_sta', workingStaSchema);
+  workingSta(signal?: AbortSignal) {
+    return this.system('get_working_sta', workingStaSchema, signal);
   }
-  offset() {
-    return this.system('offset', offsetSchema);
+  offset(signal?: AbortSignal) {
+    return this.system('offset', offsetSchema, signal);
   }
-  dotMode() {
-    return this.system('dotMode', dotModeSchema);
+  dotMode(signal?: AbortSignal) {
+    return this.system('dotMode', dotModeSchema, signal);
   }
-  deviceName() {
-    return this.system('get_dev_name', devNameSchema);
+  deviceName(signal?: AbortSignal) {
+    return this.system('get_dev_name', devNameSchema, signal);
   }
-  list(dir?: string) {
-    return this.json({ path: '/list', query: { dir } }, listSchema);
+  list(dir?: string, signal?: AbortSignal) {
+    return this.json({ path: '/list', query: { dir }, signal }, listSchema);
   }
 
   /** Raw answer of any path, for telling other xTool models apart (never throws on vendor words). */
-  async probe(path: string): Promise<string> {
+  async probe(path: string, signal?: AbortSignal): Promise<string> {
     try {
-      const r = await this.lane(() => this.http.raw({ path }));
+      const r = await this.lane(() => this.http.raw({ path, signal }), signal);
       return `${path} → ${r.status}: ${r.text.trim().slice(0, 300)}`;
     } catch (e) {
       if (e instanceof LinkError && (e.kind === 'http' || e.kind === 'vendor'))
@@ -176,7 +178,7 @@ export class XtoolClient {
 
   /**
    * POST /upload (multipart `file`). The laser answers "ok" even when the upload failed, so the
-   * caller verifies with /list afterwards (XtoolSession.upload does).
+   * caller verifies with /list afterwards (`verifiedUpload` in upload.ts does).
    */
   async upload(
     file: Blob,
@@ -250,8 +252,10 @@ export class XtoolClient {
   inFlight = 0;
   maxInFlight = 0;
 
-  private lane<T>(run: () => Promise<T>): Promise<T> {
+  private lane<T>(run: () => Promise<T>, signal?: AbortSignal): Promise<T> {
     const go = async () => {
+      // Cancelled while waiting its turn (the session stopped, the view went away): never sent.
+      if (signal?.aborted) throw new LinkError('aborted', 'Request cancelled');
       this.inFlight++;
       this.maxInFlight = Math.max(this.maxInFlight, this.inFlight);
       try {
@@ -266,10 +270,10 @@ export class XtoolClient {
   }
 
   private json<S extends z.ZodType>(opts: RequestOptions, schema: S): Promise<z.output<S>> {
-    return this.lane(() => this.http.json(opts, schema));
+    return this.lane(() => this.http.json(opts, schema), opts.signal);
   }
 
-  private system<S extends z.ZodType>(action: string, schema: S): Promise<z.output<S>> {
-    return this.json({ path: '/system', query: { action } }, schema);
+  private system<S extends z.ZodType>(action: string, schema: S, signal?: AbortSignal): Promise<z.output<S>> {
+    return this.json({ path: '/system', query: { action }, signal }, schema);
   }
 }

@@ -189,10 +189,12 @@ describe('XtoolSession against the simulator', () => {
     session.start();
     await until(() => ctx.snapshot.getState().link === 'online');
     await ctx.commands.run(session.tiltStopOff, undefined);
-    expect(session.detail.getState().periphery?.tiltStopFlag).toBe(false);
+    // The command made the settings stale: read again at once where shown (session.kernel.test.ts),
+    // else by the next idle poll.
+    await until(() => session.detail.getState().periphery?.tiltStopFlag === false, POLL_IDLE_MS + 500);
     expect(sim.trip('tilt')).toBe(false);
     await ctx.commands.run(session.tiltStopOn, undefined);
-    expect(session.detail.getState().periphery?.tiltStopFlag).toBe(true);
+    await until(() => session.detail.getState().periphery?.tiltStopFlag === true, POLL_IDLE_MS + 500);
   });
 
   it('uploads a job, verifies it with /list and says the button starts it', async () => {

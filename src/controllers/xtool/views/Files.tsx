@@ -5,6 +5,7 @@ import { describeError } from '../../../fleet/errors';
 import { Button, DataTable, Field, Notice, Panel, ProgressBar, formatBytes } from '../../../ui';
 import type { UploadTarget } from '../client';
 import { FULL_WIDTH, GRID } from './layout';
+import { useXtoolFiles } from '../queries';
 import type { XtoolSession } from '../session';
 
 type TargetKind = UploadTarget['kind'];
@@ -12,34 +13,28 @@ type TargetKind = UploadTarget['kind'];
 /** SD card: list, upload (with progress and verification), run remotely, delete. */
 export function Files({ session }: TabProps<XtoolSession>) {
   const ctx = session.ctx;
-  const d = useStoreSelect(session.detail, (s) => ({
-    files: s.files,
-    error: s.filesError,
-    upload: s.upload,
-  }));
+  const up = useStoreSelect(session.detail, (s) => s.upload);
+  // The folder listed (an on-demand read of the query layer), and the folder field being typed.
   const [dir, setDir] = useState('/');
-  const [loading, setLoading] = useState(false);
+  const [typed, setTyped] = useState('/');
+  const list = useXtoolFiles(session, dir);
   const [file, setFile] = useState<File | null>(null);
   const [kind, setKind] = useState<TargetKind>('job');
   const [filename, setFilename] = useState('/jobs/');
-  const [message, setMessage] = useState<string | null>(null);
   const isSupervisor = useCan('supervisor');
 
-  const refresh = (to = dir) => {
-    setLoading(true);
-    setDir(to);
-    session
-      .refreshFiles(to)
-      .catch((e: unknown) => setMessage(describeError(e)))
-      .finally(() => setLoading(false));
+  /** Lists `to`; the folder already listed is read again (the user asked for it). */
+  const refresh = (to = typed) => {
+    setTyped(to);
+    if (to === dir) list.refetch();
+    else setDir(to);
   };
 
   const target: UploadTarget =
     kind === 'path'
       ? { kind: 'path', filename: filename.endsWith('/') ? filename + (file?.name ?? '') : filename }
       : { kind };
-  const rows = (d.files?.entries ?? []).map((path) => ({ path, dir: !/\.[a-z0-9]+$/i.test(path) }));
-  const up = d.upload;
+  const rows = (list.data?.name ?? []).map((path) => ({ path, dir: !/\.[a-z0-9]+$/i.test(path) }));
 
   return (
     <div className="ui-grid" style={GRID} data-testid="xtool-files">
@@ -132,7 +127,7 @@ export function Files({ session }: TabProps<XtoolSession>) {
       <Panel
         title="SD card"
         actions={
-          <Button onClick={() => refresh()} busy={loading} disabled={loading}>
+          <Button onClick={() => refresh(dir)} busy={list.fetching} disabled={list.fetching}>
             Refresh
           </Button>
         }
@@ -148,22 +143,22 @@ export function Files({ session }: TabProps<XtoolSession>) {
           <input
             className="ui-input"
             aria-label="Folder"
-            value={dir}
-            onChange={(e) => setDir(e.target.value)}
+            value={typed}
+            onChange={(e) => setTyped(e.target.value)}
           />
           <Button type="submit">List</Button>
           {dir !== '/' && <Button onClick={() => refresh(dir.replace(/\/[^/]*\/?$/, '') || '/')}>Up</Button>}
         </form>
-        {(d.error || message) && (
+        {list.error && (
           <Notice tone="warn" title="Could not list the SD card">
-            {d.error ?? message}
+            {describeError(list.error)}
           </Notice>
         )}
         <DataTable
           testId="xtool-file-table"
           rows={rows}
           rowKey={(r) => r.path}
-          empty={d.files ? 'The folder is empty.' : 'Not listed yet.'}
+          empty={list.data ? 'The folder is empty.' : list.loading ? 'Listing…' : 'Not listed yet.'}
           columns={[
             { key: 'path', label: 'File', render: (r) => <span className="mono">{r.path}</span> },
             {

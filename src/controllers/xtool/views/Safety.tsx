@@ -1,9 +1,11 @@
 import { useState } from 'react';
 import type { CommandDecl } from '../../../fleet/commands';
 import type { TabProps } from '../../../fleet/contract';
+import { describeError } from '../../../fleet/errors';
 import { CommandButton, useStoreSelect } from '../../../fleet/react';
 import { Badge, Button, Field, KeyValues, Notice, Panel, formatNumber } from '../../../ui';
 import { GRID } from './layout';
+import { useXtoolSettings } from '../queries';
 import type { XtoolSession } from '../session';
 import { flameSensitivityWords } from '../wire';
 
@@ -63,14 +65,17 @@ function ByteSetting(props: {
 /** Safety sensors, thresholds, flame alarm, red-cross offset, dot mode, device name. */
 export function Safety({ session }: TabProps<XtoolSession>) {
   const ctx = session.ctx;
-  const d = useStoreSelect(session.detail, (s) => ({
-    p: s.periphery,
-    offset: s.offset,
-    dotMode: s.dotMode,
-    name: s.identity.name,
-  }));
+  // The settings are an on-demand read (queries.ts): shown from cache, read again when stale and
+  // after every settings command (they declare it).
+  const settings = useXtoolSettings(session);
+  const deviceName = useStoreSelect(session.detail, (s) => s.identity.name);
   const [name, setName] = useState('');
-  const p = d.p;
+  const p = settings.data?.periphery ?? null;
+  const d = {
+    offset: settings.data?.offset ?? null,
+    dotMode: settings.data?.dotMode ?? null,
+    name: deviceName,
+  };
   const run = (cmd: CommandDecl, label: string) => (
     <CommandButton runner={ctx.commands} snapshot={ctx.snapshot} command={cmd} args={undefined}>
       {label}
@@ -90,7 +95,11 @@ export function Safety({ session }: TabProps<XtoolSession>) {
             The laser will not stop for everything it normally would. Do not leave it unattended.
           </Notice>
         )}
-        {!p && <Notice tone="warn" title="Settings not read yet" />}
+        {!p && (
+          <Notice tone="warn" title={settings.loading ? 'Reading the settings…' : 'Settings not read yet'}>
+            {settings.error ? describeError(settings.error) : null}
+          </Notice>
+        )}
         <table className="ui-table">
           <tbody>
             {(

@@ -3,9 +3,14 @@ import { act, cleanup, fireEvent, render, screen } from '@testing-library/react'
 import { afterEach, beforeEach, describe, expect, it } from 'vitest';
 import { authStore } from '../../../fleet/auth';
 import { createContext } from '../../../fleet/fleet';
+import type { CommandDecl } from '../../../fleet/commands';
+import type { SessionContext } from '../../../fleet/contract';
+import { useBlockedReason } from '../../../fleet/kernel';
 import { alwaysVisible } from '../../../fleet/link';
 import type { Role } from '../../../fleet/types';
-import { XtoolSession } from '../session';
+import { SETTINGS_KEY } from '../queries';
+import { XtoolSession, type UploadArgs, type XtoolSettings } from '../session';
+import type { PeripheryStatus } from '../wire';
 import { Discover } from './Discover';
 import { Overview } from './Overview';
 import { Safety } from './Safety';
@@ -21,6 +26,12 @@ function online(role: Role) {
   ctx.snapshot.setState({ link: 'online' });
   session.detail.setState({ model: { family: 'd-series', answered: [] } });
   return { ctx, session };
+}
+
+/** The Safety tab shows the settings read (an on-demand read): put one answer in the query layer. */
+function settingsRead(session: XtoolSession, periphery: PeripheryStatus): void {
+  const answer: XtoolSettings = { periphery, offset: null, dotMode: null };
+  session.ctx.queries.client.setQueryData(session.ctx.queries.key(...SETTINGS_KEY), answer);
 }
 
 beforeEach(() => authStore.setState({ mode: 'unknown', user: null }));
@@ -71,14 +82,12 @@ describe('Overview', () => {
 describe('Safety', () => {
   it('warns when a sensor is off and confirms turning the flame alarm off', () => {
     const { session } = online('supervisor');
-    session.detail.setState({
-      periphery: {
-        result: 'ok',
-        tiltStopFlag: false,
-        limitStopFlag: true,
-        movingStopFlag: true,
-        flameAlarmSensitivity: 1,
-      },
+    settingsRead(session, {
+      result: 'ok',
+      tiltStopFlag: false,
+      limitStopFlag: true,
+      movingStopFlag: true,
+      flameAlarmSensitivity: 1,
     });
     render(<Safety session={session} />);
     expect(screen.getByTestId('xtool-safety-off')).toBeTruthy();
@@ -88,10 +97,42 @@ describe('Safety', () => {
 
   it('an operator cannot change safety settings', () => {
     const { session } = online('operator');
-    session.detail.setState({ periphery: { result: 'ok', tiltStopFlag: true, flameAlarmSensitivity: 1 } });
+    settingsRead(session, { result: 'ok', tiltStopFlag: true, flameAlarmSensitivity: 1 });
     render(<Safety session={session} />);
     expect(unavailable(screen.getByTestId('cmd-xtool.tilt-stop-off'))).toBe(true);
     expect(unavailable(screen.getByTestId('cmd-xtool.flame-alarm-off'))).toBe(true);
+  });
+});
+
+describe('availability follows the family store (issue 12, defect 3)', () => {
+  /** What a command button shows: the reason it is blocked, kept current (useBlockedReason). */
+  function Blocked({ ctx, command }: { ctx: SessionContext; command: CommandDecl<UploadArgs> }) {
+    const reason = useBlockedReason(ctx.commands, ctx.snapshot, command);
+    return <output data-testid="blocked">{reason ?? 'available'}</output>;
+  }
+
+  it('upload says "no SD card" as soon as the settings say so, with no snapshot change', () => {
+    const { ctx, session } = online('operator');
+    session.detail.setState({
+      machine: { state: 'idle', startedBy: null, sensor: null },
+      periphery: { result: 'ok', sdCard: true },
+    });
+    render(<Blocked ctx={ctx} command={session.upload} />);
+    const shown = () => screen.getByTestId('blocked').textContent;
+    expect(shown()).toBe('available');
+    const snap = ctx.snapshot.getState();
+    act(() => session.detail.setState({ periphery: { result: 'ok', sdCard: false } }));
+    expect(ctx.snapshot.getState()).toBe(snap); // only the family store changed
+    expect(shown()).toBe('No SD card in the laser');
+    act(() => session.detail.setState({ machine: { state: 'running', startedBy: 'button', sensor: null } }));
+    expect(shown()).toBe('The laser is busy with a job');
+    act(() =>
+      session.detail.setState({
+        machine: { state: 'idle', startedBy: null, sensor: null },
+        periphery: { result: 'ok', sdCard: true },
+      }),
+    );
+    expect(shown()).toBe('available');
   });
 });
 
