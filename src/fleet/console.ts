@@ -1,5 +1,6 @@
 import { useStore, type StoreApi } from 'zustand';
 import type { GcodeSender } from '../ui/GcodeConsole';
+import { useBlockedReason } from './kernel/commands';
 import { confirmationText, type CommandDecl, type CommandRunner } from './commands';
 import { useRole } from './react';
 import type { MachineSnapshot } from './types';
@@ -22,14 +23,14 @@ export function useConsoleCommand<A>(opts: {
   const { runner, command, args } = opts;
   const role = useRole();
   const busy = useStore(runner.state, (s) => Boolean(s.inFlight[command.id]));
-  // Re-evaluate availability when the snapshot changes (as CommandButton does).
-  useStore(opts.snapshot, (s) => `${s.link}|${s.activity}|${s.activityLabel}|${s.alarms.length}`);
+  // Follows every store the command's availability reads (the snapshot and the family's own).
+  const blocked = useBlockedReason(runner, opts.snapshot, command);
   return {
     canSend: roleAtLeast(role, command.role),
     role: command.role,
     busy,
     // In flight is shown as busy, not as a reason.
-    blockedReason: () => (runner.state.getState().inFlight[command.id] ? null : runner.blockedReason(command)),
+    blockedReason: () => (busy ? null : blocked),
     confirm: (text) => confirmationText(command, args(text)) ?? opts.confirm?.(text) ?? null,
     send: (text) => runner.run(command, args(text)),
   };

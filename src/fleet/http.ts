@@ -144,6 +144,8 @@ export class HttpClient {
   }
 
   private async fetchResponse(opts: RequestOptions): Promise<Response> {
+    // Cancelled before it left (the session stopped while it waited its turn): never sent.
+    if (opts.signal?.aborted) throw new LinkError('network', `Request to ${opts.path} cancelled`);
     const ctrl = new AbortController();
     const timeout = opts.timeoutMs ?? this.timeoutMs;
     let timedOut = false;

@@ -306,6 +306,9 @@ export class SocketLink {
     if (this.timer) clearTimeout(this.timer);
     this.timer = null;
     this.retryAt = null;
+    // One socket at a time: a socket still connecting (or open) is dropped, never orphaned.
+    this.drop(this.ws);
+    this.ws = null;
     const url = absoluteWsUrl(this.opts.url());
     this.connectedAt = this.now();
     this.lastMessageAt = this.connectedAt;
@@ -373,19 +376,24 @@ export class SocketLink {
 
   /** Drop the current socket and reconnect after backoff (dead link detected by the caller). */
   restart(): void {
-    const ws = this.ws;
+    this.drop(this.ws);
     this.ws = null;
-    if (ws) {
-      ws.onclose = null;
-      ws.onmessage = null;
-      try {
-        ws.close();
-      } catch {
-        /* ignore */
-      }
-    }
     this.socketDown();
-    this.scheduleReconnect();
+    // A reconnect already pending stays the only one (no second timer, no second socket).
+    if (!this.timer) this.scheduleReconnect();
+  }
+
+  /** Detaches and closes a socket that is no longer ours. */
+  private drop(ws: WebSocket | null, code?: number): void {
+    if (!ws) return;
+    ws.onopen = null;
+    ws.onclose = null;
+    ws.onmessage = null;
+    try {
+      ws.close(code);
+    } catch {
+      /* ignore */
+    }
   }
 
   close(): void {
@@ -395,17 +403,8 @@ export class SocketLink {
     if (this.timer) clearTimeout(this.timer);
     this.timer = null;
     this.retryAt = null;
-    const ws = this.ws;
+    this.drop(this.ws, 1000);
     this.ws = null;
-    if (ws) {
-      ws.onclose = null;
-      ws.onmessage = null;
-      try {
-        ws.close(1000);
-      } catch {
-        /* ignore */
-      }
-    }
   }
 
   private scheduleReconnect(): void {

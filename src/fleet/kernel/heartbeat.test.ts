@@ -132,4 +132,25 @@ describe('SocketLink heartbeat policy', () => {
     expect(polls).toBe(n);
     link.close();
   });
+
+  it('never holds two sockets: a restart while a reconnect is pending, or a connect while connecting', async () => {
+    const link = new SocketLink({
+      url: () => 'ws://shopdeck.test/machines/x1/ws',
+      onMessage: () => undefined,
+      backoff: { baseMs: 1000, maxMs: 1000, jitter: 0 },
+    });
+    const first = last();
+    first.close();
+    first.onclose?.({ code: 1006, reason: '' }); // dropped: a reconnect is pending
+    link.restart(); // the caller also thinks it is dead
+    await vi.advanceTimersByTimeAsync(1000);
+    expect(FakeSocket.all).toHaveLength(2); // one reconnect, not two
+    const second = last();
+    link.connect(); // while the second is still connecting
+    expect(second.closed).toBe(true);
+    expect(FakeSocket.all.filter((s) => !s.closed)).toHaveLength(1);
+    await vi.advanceTimersByTimeAsync(10_000);
+    expect(FakeSocket.all.filter((s) => !s.closed)).toHaveLength(1);
+    link.close();
+  });
 });
