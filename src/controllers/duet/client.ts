@@ -95,9 +95,12 @@ export class DuetClient {
    * `GET /machine/connect?password=` — the gateway answers it from its own session (a configured
    * password wins; a typed one is checked with DSF and kept by the gateway), without a key.
    */
-  async connect(password?: string): Promise<string | null> {
+  async connect(password?: string, signal?: AbortSignal): Promise<string | null> {
     this.connected = false;
-    const r = await this.http.json({ path: '/machine/connect', query: { password } }, connectResponse);
+    const r = await this.http.json(
+      { path: '/machine/connect', query: { password }, signal },
+      connectResponse,
+    );
     this.sessionKey = r.sessionKey;
     this.connected = true;
     return r.sessionKey;
@@ -109,8 +112,8 @@ export class DuetClient {
     this.connected = false;
   }
 
-  async noop(): Promise<void> {
-    await this.http.raw({ path: '/machine/noop', timeoutMs: 5000 });
+  async noop(signal?: AbortSignal): Promise<void> {
+    await this.http.raw({ path: '/machine/noop', timeoutMs: 5000, signal });
   }
 
   async disconnect(): Promise<void> {
@@ -131,8 +134,8 @@ export class DuetClient {
    * socket frames). `/machine/model` rather than `/machine/status`: the OpenAPI file says status
    * is "not supported before v3.4.6 or v3.5-b4"; model works on every DSF.
    */
-  async modelRaw(): Promise<Record<string, unknown>> {
-    return this.http.json({ path: '/machine/model' }, z.record(z.string(), z.unknown()));
+  async modelRaw(signal?: AbortSignal): Promise<Record<string, unknown>> {
+    return this.http.json({ path: '/machine/model', signal }, z.record(z.string(), z.unknown()));
   }
 
   /** `GET /machine/status`: the full object model. */
@@ -161,8 +164,8 @@ export class DuetClient {
   }
 
   /** Download as text (height map, macros); non-2xx throws. */
-  async readText(path: string): Promise<string> {
-    const r = await this.http.raw({ path: `/machine/file/${encodePath(path)}`, timeoutMs: 30_000 });
+  async readText(path: string, signal?: AbortSignal): Promise<string> {
+    const r = await this.http.raw({ path: `/machine/file/${encodePath(path)}`, timeoutMs: 30_000, signal });
     return r.text;
   }
 
@@ -198,11 +201,12 @@ export class DuetClient {
   }
 
   /** `GET /machine/fileinfo/{path}?readThumbnailContent=true` */
-  fileInfo(path: string, thumbnails = true): Promise<ParsedFileInfo> {
+  fileInfo(path: string, thumbnails = true, signal?: AbortSignal): Promise<ParsedFileInfo> {
     return this.http.json(
       {
         path: `/machine/fileinfo/${encodePath(path)}`,
         query: { readThumbnailContent: thumbnails ? 'true' : undefined },
+        signal,
       },
       parsedFileInfoSchema,
     );
@@ -230,8 +234,8 @@ export class DuetClient {
     });
   }
 
-  listDirectory(dir: string): Promise<DirEntry[]> {
-    return this.http.json({ path: `/machine/directory/${encodePath(dir)}` }, directoryListing);
+  listDirectory(dir: string, signal?: AbortSignal): Promise<DirEntry[]> {
+    return this.http.json({ path: `/machine/directory/${encodePath(dir)}`, signal }, directoryListing);
   }
 
   async makeDirectory(dir: string, commandId?: string): Promise<void> {

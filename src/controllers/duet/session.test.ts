@@ -5,6 +5,7 @@ import { alwaysVisible } from '../../fleet/link';
 import { simulatorHandlers } from '../../fleet/msw';
 import { FaultySimulator } from '../../fleet/sim';
 import type { SessionContext } from '../../fleet/contract';
+import { fileInfoKey } from './reads';
 import { DuetSession, messageBoxReply } from './session';
 import { DuetSimulator } from './sim/simulator';
 
@@ -243,17 +244,15 @@ describe('DuetSession through msw', () => {
   it('lists files, reads file info with thumbnails and the height map', async () => {
     session.start();
     await until(() => snap().link === 'online');
-    await session.loadDir('0:/macros');
-    expect(session.store.getState().files.entries.map((e) => e.name)).toEqual([
-      'Filament',
-      'Heat bed 60C.g',
-      'Park head.g',
-    ]);
-    await session.loadFileInfo('0:/gcodes/bracket.gcode');
-    const info = session.store.getState().fileInfo['0:/gcodes/bracket.gcode'];
-    expect(info && 'thumbnails' in info ? info.thumbnails[0]?.format : null).toBe('png');
-    await session.loadHeightMap();
-    expect(session.store.getState().heightMap.map?.xnum).toBe(7);
+    // On-demand reads are queries of the machine (reads.ts), no longer fields of the store.
+    const entries = await session.loadDir('0:/macros');
+    expect(session.store.getState().filesDir).toBe('0:/macros');
+    expect(entries.map((e) => e.name)).toEqual(['Filament', 'Heat bed 60C.g', 'Park head.g']);
+    const info = await session.loadFileInfo('0:/gcodes/bracket.gcode');
+    expect(info.thumbnails[0]?.format).toBe('png');
+    expect(ctx.queries.peek<typeof info>(fileInfoKey('0:/gcodes/bracket.gcode'))).toBe(info);
+    const map = await session.loadHeightMap();
+    expect(map.xnum).toBe(7);
     await ctx.commands
       .run(session.cmd.move, { from: '0:/macros/Park head.g', to: '0:/macros/Heat bed 60C.g' })
       .catch((e: Error) => {

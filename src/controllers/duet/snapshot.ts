@@ -80,7 +80,7 @@ export function jobSummary(m: ObjectModel): JobSummary | null {
   };
 }
 
-export function heaterName(m: ObjectModel, index: number): string {
+export function heaterName(m: Pick<ObjectModel, 'heat' | 'tools'>, index: number): string {
   if (m.heat.bedHeaters.includes(index))
     return m.heat.bedHeaters.filter((h) => h >= 0).length > 1 ? `Bed ${index}` : 'Bed';
   if (m.heat.chamberHeaters.includes(index)) return 'Chamber';

@@ -1,4 +1,4 @@
-import { useEffect, useRef, useState, type ReactNode } from 'react';
+import { useRef, useState, type ReactNode } from 'react';
 import type { TabProps } from '../../../fleet/contract';
 import { LinkError } from '../../../fleet/errors';
 import { CommandButton, useCan, useSnapshot, useStoreSelect } from '../../../fleet/react';
@@ -8,6 +8,7 @@ import { joinPath } from '../client';
 import type { DuetSession } from '../session';
 import type { DirEntry } from '../wire';
 import { DuetFrame, Thumbnail } from './common';
+import { useDirectory, useFileInfo } from './reads';
 
 type Root = 'gCodes' | 'macros' | 'system' | 'filaments';
 const ROOTS: Array<[Root, string]> = [
@@ -25,7 +26,7 @@ function trimDir(d: string): string {
 export function Files({ session }: TabProps<DuetSession>) {
   const ctx = session.ctx;
   const dirs = useStoreSelect(session.store, (s) => s.model?.directories ?? null);
-  const files = useStoreSelect(session.store, (s) => s.files);
+  const shownDir = useStoreSelect(session.store, (s) => s.filesDir);
   const uploads = useStoreSelect(session.store, (s) => s.uploads);
   const link = useSnapshot(ctx, (s) => s.link);
   const canSupervise = useCan('supervisor');
@@ -36,18 +37,11 @@ export function Files({ session }: TabProps<DuetSession>) {
   const fileInput = useRef<HTMLInputElement>(null);
 
   const rootDir = trimDir(dirs?.[root] ?? '0:/gcodes');
-  const dir = files.dir.startsWith(rootDir) ? files.dir : rootDir;
+  const dir = shownDir.startsWith(rootDir) ? shownDir : rootDir;
+  // The listing is a query of the machine: cached, read again after file commands (reads.ts).
+  const files = useDirectory(session, dir, link === 'online');
 
-  useEffect(() => {
-    if (
-      link === 'online' &&
-      (files.dir !== dir || (files.entries.length === 0 && !files.loading && !files.error))
-    )
-      void session.loadDir(dir);
-    // eslint-disable-next-line react-hooks/exhaustive-deps
-  }, [dir, link]);
-
-  const open = (d: string) => void session.loadDir(d);
+  const open = (d: string) => session.openDir(d);
   const up = dir !== rootDir ? dir.slice(0, dir.lastIndexOf('/')) : null;
   const uploadCmd = session.uploadCommandFor(dir);
   const canUpload = useCan(uploadCmd.role);
@@ -94,11 +88,12 @@ export function Files({ session }: TabProps<DuetSession>) {
                   type="file"
                   multiple
                   hidden
+                  aria-label="Files to upload"
                   onChange={(e) => void onFiles(e.target.files)}
                   data-testid="duet-upload-input"
                 />
                 <Button onClick={() => fileInput.current?.click()} disabled={link !== 'online'}>
-                  ⇪ Upload
+                  <span aria-hidden="true">⇪</span> Upload
                 </Button>
               </>
             )}
@@ -107,16 +102,15 @@ export function Files({ session }: TabProps<DuetSession>) {
                 New folder
               </Button>
             )}
-            <Button onClick={() => void session.refreshDir()}>Refresh</Button>
+            <Button onClick={files.refetch}>Refresh</Button>
           </>
         }
       >
-        <div className="ui-row" role="tablist" style={{ marginBottom: 10 }}>
+        <div className="ui-row" role="group" aria-label="Folder" style={{ marginBottom: 10 }}>
           {ROOTS.map(([r, label]) => (
             <Button
               key={r}
-              role="tab"
-              aria-selected={r === root}
+              aria-pressed={r === root}
               variant={r === root ? 'primary' : 'secondary'}
               onClick={() => {
                 setRoot(r);
@@ -131,7 +125,7 @@ export function Files({ session }: TabProps<DuetSession>) {
         <div className="ui-row" style={{ marginBottom: 10 }}>
           {up !== null && (
             <Button onClick={() => open(up)} aria-label="Up one folder">
-              ↑ Up
+              <span aria-hidden="true">↑</span> Up
             </Button>
           )}
           <span className="mono" data-testid="duet-dir">
@@ -220,10 +214,9 @@ function FileList(props: {
                     command={session.cmd.start}
                     args={{ path }}
                     variant="primary"
-
                     testId={`duet-start-${e.name}`}
                   >
-                    ▶ Print
+                    <span aria-hidden="true">▶</span> Print
                   </CommandButton>
                   <CommandButton
                     runner={ctx.commands}
@@ -241,7 +234,6 @@ function FileList(props: {
                   snapshot={ctx.snapshot}
                   command={session.cmd.macro}
                   args={{ path }}
-
                   hideWhenNotAllowed
                 >
                   Run
@@ -250,7 +242,7 @@ function FileList(props: {
               {!isDir && (props.canReadSystem || openToViewers(path)) && (
                 <Button onClick={() => props.onDownload(path, e.name)}>Download</Button>
               )}
-              <RoleGate role="supervisor">
+              <RoleGate least="supervisor">
                 <Button onClick={() => props.onRename(e)}>Rename</Button>
               </RoleGate>
               <CommandButton
@@ -258,7 +250,6 @@ function FileList(props: {
                 snapshot={ctx.snapshot}
                 command={session.cmd.del}
                 args={{ path, dir: isDir }}
-
                 hideWhenNotAllowed
               >
                 Delete
@@ -283,16 +274,14 @@ function FileIcon({ folder }: { folder: boolean }) {
   );
 }
 
-function RoleGate(props: { role: 'operator' | 'supervisor'; children: ReactNode }) {
-  return useCan(props.role) ? <>{props.children}</> : null;
+/** Its children only for users with at least the role `least`. */
+function RoleGate(props: { least: 'operator' | 'supervisor'; children: ReactNode }) {
+  return useCan(props.least) ? <>{props.children}</> : null;
 }
 
 function JobThumb({ session, path }: { session: DuetSession; path: string }) {
-  const info = useStoreSelect(session.store, (s) => ({ v: s.fileInfo[path] ?? null }));
-  useEffect(() => {
-    void session.loadFileInfo(path);
-  }, [session, path]);
-  const v = info.v;
+  // File info with thumbnails: a bounded query of the machine, not kept forever.
+  const v = useFileInfo(session, path);
   const thumb =
     v && 'thumbnails' in v
       ? (v.thumbnails.find((t) => t.data && t.width <= 160) ?? v.thumbnails.find((t) => t.data) ?? null)
@@ -369,9 +358,13 @@ function RenameDialog({
       title={conflict ? 'Overwrite?' : `Rename or move ${entry.name}`}
       onCancel={onClose}
       testId="duet-rename"
+      // The overwrite question is destructive: focus on Cancel when it is asked.
+      focusKey={conflict ? 'conflict' : 'name'}
       actions={
         <>
-          <Button onClick={onClose}>Cancel</Button>
+          <Button onClick={onClose} data-autofocus={conflict || undefined}>
+            Cancel
+          </Button>
           {conflict ? (
             <Button
               variant="danger"

@@ -1,10 +1,11 @@
-import { useEffect } from 'react';
 import type { TabProps } from '../../../fleet/contract';
 import { useSnapshot, useStoreSelect } from '../../../fleet/react';
 import { Button, KeyValues, Notice, Panel, ProgressBar, formatNumber } from '../../../ui';
+import { DEFAULT_HEIGHT_MAP } from '../reads';
 import type { DuetSession } from '../session';
 import type { HeightMap as Map } from '../wire';
 import { DuetFrame } from './common';
+import { useHeightMap } from './reads';
 
 /** Blue (low) → green (0) → red (high), symmetric around zero. */
 export function heightColor(v: number, range: number): string {
@@ -23,13 +24,10 @@ export function heightStats(m: Map): { min: number; max: number; mean: number; r
 
 /** The mesh file `move.compensation.file` points at, as a 2-D colour map (y up, as on the bed). */
 export function HeightMap({ session }: TabProps<DuetSession>) {
-  const hm = useStoreSelect(session.store, (s) => s.heightMap);
   const file = useStoreSelect(session.store, (s) => s.model?.move.compensation?.file ?? null);
   const link = useSnapshot(session.ctx, (s) => s.link);
-  useEffect(() => {
-    if (link === 'online' && !hm.map && !hm.loading && !hm.error) void session.loadHeightMap();
-    // eslint-disable-next-line react-hooks/exhaustive-deps
-  }, [link, file]);
+  // A query keyed by the file: another compensation file is another map.
+  const hm = useHeightMap(session, file ?? DEFAULT_HEIGHT_MAP, link === 'online');
   const m = hm.map;
   const stats = m ? heightStats(m) : null;
   const range = stats ? Math.max(Math.abs(stats.min), Math.abs(stats.max), 0.01) : 1;
@@ -39,9 +37,9 @@ export function HeightMap({ session }: TabProps<DuetSession>) {
       <Panel
         title="Height map"
         testId="duet-heightmap"
-        actions={<Button onClick={() => void session.loadHeightMap()}>Reload</Button>}
+        actions={<Button onClick={hm.refetch}>Reload</Button>}
       >
-        <p className="ui-muted mono">{hm.path ?? file ?? '0:/sys/heightmap.csv'}</p>
+        <p className="ui-muted mono">{hm.path}</p>
         {hm.loading && <ProgressBar value={null} label="Loading height map" />}
         {hm.error && (
           <Notice tone="warn" title="No height map">

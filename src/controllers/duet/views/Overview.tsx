@@ -136,7 +136,7 @@ function JobPanel({ session }: { session: DuetSession }) {
             variant="primary"
             testId="duet-pause"
           >
-            ❚❚ Pause
+            <span aria-hidden="true">❚❚</span> Pause
           </CommandButton>
         )}
         {(status === 'paused' || status === 'pausing') && (
@@ -149,7 +149,7 @@ function JobPanel({ session }: { session: DuetSession }) {
               variant="primary"
               testId="duet-resume"
             >
-              ▶ Resume
+              <span aria-hidden="true">▶</span> Resume
             </CommandButton>
             <CommandButton
               runner={ctx.commands}
@@ -159,7 +159,7 @@ function JobPanel({ session }: { session: DuetSession }) {
               variant="danger"
               testId="duet-cancel"
             >
-              ■ Cancel print
+              <span aria-hidden="true">■</span> Cancel print
             </CommandButton>
           </>
         )}
@@ -171,8 +171,10 @@ function JobPanel({ session }: { session: DuetSession }) {
 function HeatersPanel({ session }: { session: DuetSession }) {
   const ctx = session.ctx;
   const now = useNow(2000);
-  // Select stable references only (the model's own objects); derive in render.
-  const m = useStoreSelect(session.store, (s) => s.model);
+  // Select stable references only (the model's own objects, kept by unchanged frames); derive in render.
+  const m = useStoreSelect(session.store, (s) =>
+    s.model ? { heat: s.model.heat, tools: s.model.tools } : null,
+  );
   const rows = m
     ? m.heat.heaters.flatMap((h, i) =>
         h

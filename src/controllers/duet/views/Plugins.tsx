@@ -26,6 +26,7 @@ export function Plugins({ session }: TabProps<DuetSession>) {
               type="file"
               accept=".zip,application/zip"
               hidden
+              aria-label="Plugin file (ZIP)"
               onChange={(e) => {
                 setPending(e.target.files?.[0] ?? null);
                 setError(null);
