@@ -78,7 +78,10 @@ describe('UploadTracker: transitions', () => {
     const h = t.start({ name: 'a.g', total: 3 });
     h.verifying();
     h.fail(new Error('The laser answered "ok" but a.g is not on the SD card'));
-    expect(t.state).toMatchObject({ phase: 'failed', message: expect.stringContaining('not on the SD card') });
+    expect(t.state).toMatchObject({
+      phase: 'failed',
+      message: expect.stringContaining('not on the SD card'),
+    });
   });
 
   it('an aborted transfer ends as cancelled, not failed (LinkError or DOM AbortError)', () => {

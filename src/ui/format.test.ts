@@ -1,6 +1,14 @@
 process.env.TZ = 'Europe/Berlin';
 import { afterAll, afterEach, beforeAll, describe, expect, it, vi } from 'vitest';
-import { formatAge, formatBytes, formatDateTime, formatDuration, formatNumber, formatPercent, formatTime } from './format';
+import {
+  formatAge,
+  formatBytes,
+  formatDateTime,
+  formatDuration,
+  formatNumber,
+  formatPercent,
+  formatTime,
+} from './format';
 
 // The browser's own language and time zone: an English (UK) browser in Berlin.
 vi.stubGlobal('navigator', { language: 'en-GB', languages: ['en-GB', 'en'] });

@@ -37,9 +37,11 @@ export function formatDecimal(n: number | null | undefined, maxDigits = 2, unit?
 /** A fraction (0.42) as a percentage, written the locale's way (`42%`, `42 %`). */
 export function formatPercent(fraction: number | null | undefined, digits = 0): string {
   if (fraction === null || fraction === undefined || !Number.isFinite(fraction)) return '—';
-  return numberFormat({ style: 'percent', minimumFractionDigits: digits, maximumFractionDigits: digits }).format(
-    fraction,
-  );
+  return numberFormat({
+    style: 'percent',
+    minimumFractionDigits: digits,
+    maximumFractionDigits: digits,
+  }).format(fraction);
 }
 
 export function formatBytes(n: number | null | undefined): string {
