@@ -46,7 +46,8 @@ export default defineConfig({
     },
   ],
   webServer: {
-    command: `npx vite preview --configLoader runner --port ${port} --strictPort --host 127.0.0.1`,
+    // The production server (server/main.ts) serving the built dist/, not `vite preview`.
+    command: `node --import tsx server/main.ts --port ${port} --host 127.0.0.1`,
     url: `http://127.0.0.1:${port}/api/machines`,
     reuseExistingServer: false,
     timeout: 60_000,

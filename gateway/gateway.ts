@@ -28,6 +28,11 @@ export interface Gateway {
   handle(req: IncomingMessage, res: ServerResponse, next: (err?: unknown) => void): void;
   /** `upgrade` listener: handles `/machines/*`, returns false (leaves the socket alone) otherwise. */
   upgrade(req: IncomingMessage, socket: Duplex, head: Buffer): boolean;
+  /**
+   * Shutdown: closes every bridged browser socket with 1001 (going away), so pages reconnect
+   * quietly to the restarted server. Returns how many were told.
+   */
+  goingAway(reason: string): number;
   close(): void;
 }
 
@@ -148,7 +153,16 @@ export function createGateway(opts: GatewayOptions): Gateway {
     httpsAgent.destroy();
   }
 
-  return { machines: config, audit, usersFile, handle, upgrade, close };
+  function goingAway(reason: string): number {
+    let told = 0;
+    for (const live of [...ctx.liveSockets.values()]) {
+      live.close(1001, reason);
+      told++;
+    }
+    return told;
+  }
+
+  return { machines: config, audit, usersFile, handle, upgrade, goingAway, close };
 }
 
 export type { UserRecord };
