@@ -180,6 +180,21 @@ function hostAllowedBy(allowed: true | readonly string[], req: IncomingMessage):
   );
 }
 
+function isLoopback(address: string | undefined): boolean {
+  return address === '::1' || /^(::ffff:)?127\./.test(address ?? '');
+}
+
+/** /healthz for the network: healthy or not, and why in one word each, without paths or counts. */
+function publicHealth(h: HealthReport): Record<string, unknown> {
+  return {
+    ok: h.ok,
+    machines: { loaded: h.machines.loaded },
+    users: { mode: h.users.mode, loaded: h.users.mode === 'open' || h.users.loaded },
+    https: h.https,
+    stopping: h.stopping,
+  };
+}
+
 function plain(
   res: ServerResponse,
   status: number,
@@ -374,7 +389,9 @@ export function createShopdeckServer(opts: ShopdeckServerOptions): ShopdeckServe
       if (method !== 'GET' && method !== 'HEAD')
         return plain(res, 405, 'method not allowed', { Allow: 'GET, HEAD' });
       const h = health();
-      const body = JSON.stringify(h);
+      // File paths, user counts and error words are for this computer (a health check, an
+      // admin); anyone else on the network learns only whether the console is healthy.
+      const body = JSON.stringify(isLoopback(req.socket.remoteAddress) ? h : publicHealth(h));
       res.writeHead(h.ok ? 200 : 503, {
         'Content-Type': 'application/json; charset=utf-8',
         'Content-Length': Buffer.byteLength(body),
