@@ -322,6 +322,7 @@ describe('held Duet session: the browser never sees a session key', () => {
     await ws.close();
     expectNoKey(d.keys, ...got);
     // … nor the audit log.
+    await s.gw.gw.audit.flush(); // the file is written in the background
     expectNoKey(d.keys, readFileSync(path.join(s.dir, 'audit.jsonl'), 'utf8'));
   });
 
@@ -437,6 +438,7 @@ describe('held Duet session: the browser never sees a session key', () => {
     // A command that fails shows up in the audit log, without the password or the key.
     d.expire();
     await send(s, 'POST', `/machines/mk3/machine/code?x=${typed}`, s.supervisor, { body: 'M115' });
+    await s.gw.gw.audit.flush(); // the file is written in the background
     const audit = readFileSync(path.join(s.dir, 'audit.jsonl'), 'utf8');
     expect(audit).toContain('/machine/code');
     expect(audit).not.toContain(typed);

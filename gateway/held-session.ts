@@ -8,6 +8,7 @@ import { sendJson } from './http-util';
 import { redact, type MachineEntry } from './machines';
 import { redactText } from './redact';
 import { connectPinned } from './tls-pin';
+import { unreachableReason } from './log';
 
 /**
  * Controller sessions the gateway holds (a family declares `gateway.session`, e.g. Duet DSF): a
@@ -143,11 +144,14 @@ export async function upstreamRequest(
     req.setTimeout(ctx.timeoutMs, () =>
       req.destroy(new Error(`the controller did not answer within ${ctx.timeoutMs} ms`)),
     );
-    req.on('error', (e) => {
+    req.on('error', (e: Error & { code?: string }) => {
       settle();
+      const reason = opts.detached || ctx.state.closed ? null : unreachableReason(e, false);
+      if (reason) ctx.reachability.down(m.id, reason, redact(e.message, ctx.secretsOf.get(m.id) ?? []));
       reject(e);
     });
     req.on('response', (res) => {
+      ctx.reachability.up(m.id);
       const chunks: Buffer[] = [];
       let size = 0;
       res.on('data', (c: Buffer) => {
@@ -258,7 +262,12 @@ export class HeldSession {
     } catch (e) {
       const err = e instanceof Error ? e : new Error(String(e));
       const forms = this.ctx.secretsOf.get(this.m.id) ?? [];
-      console.error(`shopdeck: ${this.m.id}: opening the controller session: ${redact(err.message, forms)}`);
+      const reason = this.ctx.state.closed ? null : unreachableReason(err, false);
+      if (reason) this.ctx.reachability.down(this.m.id, reason, redact(err.message, forms));
+      else
+        this.ctx.log.error(`${this.m.id}: opening the controller session: ${redact(err.message, forms)}`, {
+          machine: this.m.id,
+        });
       const timedOut = /did not answer within/.test(err.message);
       return {
         ok: false,

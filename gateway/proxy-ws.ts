@@ -15,6 +15,7 @@ import { auditTarget, splitTarget } from './paths';
 import { bridgeSimSocket } from './sim-server';
 import { holdSocket } from './held-session';
 import type { GatewayContext } from './context';
+import { unreachableReason } from './log';
 
 export function createWsProxy(ctx: GatewayContext) {
   const {
@@ -34,6 +35,7 @@ export function createWsProxy(ctx: GatewayContext) {
     liveSockets,
     patternsFor,
     pins,
+    reachability,
   } = ctx;
 
   // ---------------------------------------------------------------- /machines (WebSocket)
@@ -202,6 +204,9 @@ export function createWsProxy(ctx: GatewayContext) {
       } catch (e) {
         const msg =
           e instanceof CertificateChanged || e instanceof PinFileError ? e.message : `cannot reach ${m.name}`;
+        const reason = unreachableReason(e as Error & { code?: string }, false);
+        if (reason)
+          reachability.down(m.id, reason, redact(e instanceof Error ? e.message : String(e), forms));
         audited({ error: msg });
         return rejectUpgrade(socket, 502, { error: msg, gateway: true });
       }
@@ -232,6 +237,7 @@ export function createWsProxy(ctx: GatewayContext) {
       rejectUpgrade(socket, status, { error: redact(error, forms) });
     };
     upstream.once('unexpected-response', (_r, resp) => {
+      reachability.up(m.id); // it answered, with something else than a WebSocket
       upstream.removeAllListeners('error');
       upstream.on('error', () => undefined);
       fail(502, `the controller refused the WebSocket (HTTP ${resp.statusCode ?? '?'})`);
@@ -248,11 +254,14 @@ export function createWsProxy(ctx: GatewayContext) {
       // write an HTTP answer on a socket that may already be upgraded.
       if (!opened && upstream.readyState !== WebSocket.OPEN) {
         const timeout = /timed out|timeout/i.test(e.message);
+        const reason = state.closed ? null : unreachableReason(e as Error & { code?: string }, false);
+        if (reason) reachability.down(m.id, reason, redact(e.message, forms));
         fail(timeout ? 504 : 502, `cannot open the controller's WebSocket: ${e.message}`);
       }
     });
     upstream.once('open', () => {
       opened = true;
+      reachability.up(m.id);
       const wss = new WebSocketServer({
         noServer: true,
         clientTracking: false,

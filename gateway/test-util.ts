@@ -112,6 +112,8 @@ export async function startGateway(opts: GatewayOptions): Promise<Running> {
     gw,
     close: async () => {
       gw.close();
+      // As the server does at shutdown: what is queued reaches the file before the folder goes.
+      await gw.audit.close().catch(() => undefined);
       server.closeAllConnections();
       await new Promise<void>((r) => server.close(() => r()));
     },

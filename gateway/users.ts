@@ -4,6 +4,7 @@ import { randomBytes } from 'node:crypto';
 import bcrypt from 'bcryptjs';
 import { z } from 'zod';
 import { MACHINE_ID, ROLES, type Role } from '../src/fleet/types';
+import { loggerFromEnv, type Logger } from './log';
 
 /**
  * The users file (`SHOPDECK_USERS`, else `users.json` in the data folder). With no users file
@@ -162,7 +163,10 @@ export class UserDirectory {
   private secured: boolean;
   private gen = 0;
 
-  constructor(readonly file: string) {
+  constructor(
+    readonly file: string,
+    private readonly log: Logger = loggerFromEnv(),
+  ) {
     this.users = readUsers(file);
     this.secured = this.users !== null;
     this.stamp = this.currentStamp();
@@ -191,7 +195,7 @@ export class UserDirectory {
         this.users = [];
       }
     } catch (e) {
-      console.error(e instanceof Error ? e.message : String(e));
+      this.log.error(e instanceof Error ? e.message : String(e), { file: this.file });
       if (this.secured) this.users = [];
     }
   }

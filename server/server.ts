@@ -1,4 +1,4 @@
-import { closeSync, existsSync, fsyncSync, openSync } from 'node:fs';
+import { existsSync } from 'node:fs';
 import http, { type IncomingMessage, type ServerResponse } from 'node:http';
 import https from 'node:https';
 import { isIP, type AddressInfo } from 'node:net';
@@ -210,17 +210,6 @@ function plain(
   res.end(text);
 }
 
-/** The audit log on disk now (its entries are appended synchronously; this makes them durable). */
-function syncFile(file: string): void {
-  if (!existsSync(file)) return;
-  const fd = openSync(file, 'r+');
-  try {
-    fsyncSync(fd);
-  } finally {
-    closeSync(fd);
-  }
-}
-
 const delay = (ms: number): Promise<void> =>
   new Promise((r) => {
     setTimeout(r, Math.max(0, ms)).unref();
@@ -301,6 +290,7 @@ export function createShopdeckServer(opts: ShopdeckServerOptions): ShopdeckServe
     usersFile,
     allowedHosts,
     openOnNetwork,
+    log,
   });
 
   // ---------------------------------------------------------------- static files
@@ -622,9 +612,10 @@ export function createShopdeckServer(opts: ShopdeckServerOptions): ShopdeckServe
     // 3. The gateway: held controller sessions, simulators, upstream sockets, pending audit summaries.
     gw.close();
     try {
-      syncFile(gw.audit.file);
+      // Everything queued is written and fsynced (audit.ts writes asynchronously).
+      await Promise.race([gw.audit.close(), delay(Math.max(0, deadline - 500 - Date.now()))]);
     } catch (e) {
-      log.error('cannot sync the audit log to disk', { file: gw.audit.file, error: String(e) });
+      log.error('cannot write the audit log to disk', { file: gw.audit.file, error: String(e) });
     }
     // 4. Requests still running get until the deadline; then their connections are cut.
     await Promise.race([allClosed, delay(deadline - Date.now())]);

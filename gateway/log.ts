@@ -1,0 +1,139 @@
+/**
+ * The gateway's log: plain lines for a person at a terminal, or one JSON object a line
+ * (`SHOPDECK_LOG=json`) for journald, Docker and log shippers: `{ time, level, msg, …fields }`.
+ *
+ * The same format as the server's own log (server/log.ts): the same keys, the same text prefix
+ * (`shopdeck:` / `shopdeck: warn:`), so one log reads as one. The server may hand its logger to the
+ * gateway (`GatewayOptions.log`); the gateway's `Logger` is the part of it the gateway uses.
+ */
+
+export type LogLevel = 'info' | 'warn' | 'error';
+
+export type LogFields = Record<string, unknown>;
+
+export interface Logger {
+  readonly json: boolean;
+  info(msg: string, fields?: LogFields): void;
+  warn(msg: string, fields?: LogFields): void;
+  error(msg: string, fields?: LogFields): void;
+}
+
+export interface LoggerOptions {
+  json?: boolean;
+  /** Where lines go (default: info to stdout, warnings and errors to stderr). */
+  write?: (line: string, level: LogLevel) => void;
+  now?: () => Date;
+}
+
+function defaultWrite(line: string, level: LogLevel): void {
+  (level === 'info' ? process.stdout : process.stderr).write(line + '\n');
+}
+
+function textValue(v: unknown): string {
+  if (typeof v === 'string') return /[\s"=]/.test(v) || v === '' ? JSON.stringify(v) : v;
+  if (v instanceof Error) return JSON.stringify(v.message);
+  return JSON.stringify(v) ?? String(v);
+}
+
+export function createLogger(opts: LoggerOptions = {}): Logger {
+  const json = opts.json ?? false;
+  const write = opts.write ?? defaultWrite;
+  const now = opts.now ?? (() => new Date());
+  const emit = (level: LogLevel, msg: string, fields: LogFields = {}): void => {
+    if (json) {
+      const entry: LogFields = { time: now().toISOString(), level, msg };
+      for (const [k, v] of Object.entries(fields)) {
+        if (k in entry || v === undefined) continue;
+        entry[k] = v instanceof Error ? v.message : v;
+      }
+      write(JSON.stringify(entry), level);
+      return;
+    }
+    const extra = Object.entries(fields)
+      .filter(([, v]) => v !== undefined)
+      .map(([k, v]) => `${k}=${textValue(v)}`)
+      .join(' ');
+    const prefix = level === 'info' ? 'shopdeck:' : `shopdeck: ${level}:`;
+    write(`${prefix} ${msg}${extra ? ` (${extra})` : ''}`, level);
+  };
+  return {
+    json,
+    info: (msg, fields) => emit('info', msg, fields),
+    warn: (msg, fields) => emit('warn', msg, fields),
+    error: (msg, fields) => emit('error', msg, fields),
+  };
+}
+
+/** The logger the environment asks for: JSON with `SHOPDECK_LOG=json`, plain text otherwise. */
+export function loggerFromEnv(env: NodeJS.ProcessEnv = process.env): Logger {
+  return createLogger({ json: (env.SHOPDECK_LOG ?? '').toLowerCase() === 'json' });
+}
+
+// ---------------------------------------------------------------- machines going offline/online
+
+/**
+ * Why a controller could not be reached, in a few words, or null when the error says nothing
+ * about reaching it (a changed certificate, a refused redirect, an answer too large: the
+ * controller was there). Used for the offline/online lines, never shown to viewers.
+ */
+export function unreachableReason(
+  e: { code?: unknown; message?: unknown } | null | undefined,
+  timedOut: boolean,
+): string | null {
+  if (timedOut) return 'no answer in time';
+  switch (typeof e?.code === 'string' ? e.code : '') {
+    case 'ECONNREFUSED':
+      return 'connection refused';
+    case 'ECONNRESET':
+    case 'EPIPE':
+      return 'connection reset';
+    case 'ETIMEDOUT':
+      return 'connection timed out';
+    case 'EHOSTUNREACH':
+    case 'EHOSTDOWN':
+      return 'host unreachable';
+    case 'ENETUNREACH':
+    case 'ENETDOWN':
+      return 'network unreachable';
+    case 'ENOTFOUND':
+    case 'EAI_AGAIN':
+      return 'address not resolved';
+    default:
+      // The ws library's handshake timeout and our own timeouts carry no code.
+      return typeof e?.message === 'string' && /timed out|did not answer within/i.test(e.message)
+        ? 'no answer in time'
+        : null;
+  }
+}
+
+export type Reachable = 'online' | 'offline' | 'unknown';
+
+/**
+ * Whether each machine's controller answers, as the gateway sees it: one log line when a machine
+ * goes offline (the first failure to reach it after it answered, or since the start) and one
+ * when it comes back (the first answer after failures). Per machine, not per request.
+ */
+export class Reachability {
+  private readonly state = new Map<string, 'online' | 'offline'>();
+
+  constructor(private readonly log: Logger) {}
+
+  /** The controller answered (any HTTP status, a WebSocket handshake). */
+  up(machine: string): void {
+    const was = this.state.get(machine);
+    this.state.set(machine, 'online');
+    if (was === 'offline') this.log.info(`machine ${machine} online`, { machine, event: 'online' });
+  }
+
+  /** The controller could not be reached (`unreachableReason`); `error`: the system's words, redacted. */
+  down(machine: string, reason: string, error?: string): void {
+    const was = this.state.get(machine);
+    this.state.set(machine, 'offline');
+    if (was !== 'offline')
+      this.log.warn(`machine ${machine} offline: ${reason}`, { machine, event: 'offline', reason, error });
+  }
+
+  status(machine: string): Reachable {
+    return this.state.get(machine) ?? 'unknown';
+  }
+}
