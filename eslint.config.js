@@ -37,14 +37,7 @@ const boundaryZones = [
 
 export default tseslint.config(
   {
-    ignores: [
-      'dist',
-      'node_modules',
-      'public/mockServiceWorker.js',
-      'tests/fixtures',
-      'test-results',
-      '.shopdeck',
-    ],
+    ignores: ['dist', 'node_modules', 'tests/fixtures', 'test-results', '.shopdeck'],
   },
   js.configs.recommended,
   ...tseslint.configs.recommended,

@@ -7,29 +7,13 @@ import { LoginHistory, SESSION_COOKIE, type LimitKey } from './auth';
 import { discoverXtool } from './discovery';
 import { clientAddress, parseCookies, readJson, sendJson } from './http-util';
 import { machineInfo } from './machines';
+import { createSimApi, SIM_API_PATH } from './sim-api';
 import { PIN_RULE, checkSecret } from './users';
 import type { GatewayContext, Principal, Who } from './context';
 import { envNumber } from './context';
 
-/** What the browser reports about a command it sent to a simulated machine (src/app/boot.ts). */
-const clientAuditSchema = z.object({
-  machine: z.string().max(40),
-  method: z.string().max(10).optional(),
-  path: z.string().max(2000).optional(),
-  commandId: z.string().max(100).optional(),
-  command: z.string().max(100).optional(),
-  label: z.string().max(200).optional(),
-  status: z.number().int().min(0).max(999).optional(),
-  ok: z.boolean().optional(),
-  result: z.string().max(500).optional(),
-  error: z.string().max(500).optional(),
-});
-
 const loginSchema = z.object({ name: z.string().min(1).max(64), password: z.string().min(1).max(1024) });
 const elevateSchema = z.object({ name: z.string().min(1).max(64), pin: z.string().min(1).max(64) });
-
-/** Client audit records a session may send a minute (the browser sends one per command). */
-const CLIENT_AUDIT_PER_MINUTE = 60;
 
 function tooMany(res: ServerResponse, error: string, retryAfterS: number): void {
   sendJson(res, 429, { error, retryAfterS }, { 'Retry-After': String(retryAfterS) });
@@ -49,7 +33,6 @@ export function createApi(ctx: GatewayContext) {
     limiter,
     byId,
     record,
-    scrub,
     who,
     sessionBody,
     cookie,
@@ -58,6 +41,7 @@ export function createApi(ctx: GatewayContext) {
     pins,
   } = ctx;
   const limits = limiter.opts;
+  const simApi = createSimApi(ctx);
   /** Where each user logged in from: the per-user backstop spares those addresses. */
   const logins = new LoginHistory(now);
   /** PIN locks already written to the audit log (name → when), one entry per lock. */
@@ -319,11 +303,8 @@ export function createApi(ctx: GatewayContext) {
         }
         const p = w.principal;
         const machines = config.machines.filter((m) => mayUseMachine(p, m.id)).map(machineInfo);
-        // `demo`: the built-in demo fleet (no machines file): the console starts demo jobs.
-        sendJson(res, 200, {
-          machines,
-          demo: config.file === null && config.machines.every((m) => m.simulated),
-        });
+        // `demo`: the built-in demo fleet (no machines file): the gateway runs demo jobs.
+        sendJson(res, 200, { machines, demo: ctx.builtInDemo });
         return;
       }
       case 'GET /api/audit':
@@ -339,7 +320,7 @@ export function createApi(ctx: GatewayContext) {
         }
         const q = { ...auditQueryFrom(url.searchParams), machines: w.principal.machines };
         if (url.pathname.endsWith('.csv')) {
-          const csv = toCsv(audit.filtered(q));
+          const csv = toCsv(await audit.filtered(q));
           res.writeHead(200, {
             'Content-Type': 'text/csv; charset=utf-8',
             'Content-Disposition': 'attachment; filename="shopdeck-audit.csv"',
@@ -347,66 +328,8 @@ export function createApi(ctx: GatewayContext) {
           });
           res.end(csv);
         } else {
-          sendJson(res, 200, audit.query(q));
+          sendJson(res, 200, await audit.query(q));
         }
-        return;
-      }
-      case 'POST /api/audit/client': {
-        const w = who(req, true);
-        if (!w.principal) {
-          needLogin(res, w);
-          return;
-        }
-        if (!roleAtLeast(w.principal.role, 'operator')) {
-          req.resume();
-          sendJson(res, 403, {
-            error: 'viewers send no commands: there is nothing to record',
-            needs: 'operator',
-          });
-          return;
-        }
-        // A session may not flood the log (the browser sends one record per command).
-        const slot = limiter.reserve([
-          {
-            key: `client-audit:${w.session?.token ?? address}`,
-            limit: CLIENT_AUDIT_PER_MINUTE,
-            windowMs: 60_000,
-          },
-        ]);
-        if (!slot.ok) {
-          req.resume();
-          tooMany(res, `too many audit records: try again in ${slot.retryAfterS} s`, slot.retryAfterS);
-          return;
-        }
-        const body = clientAuditSchema.safeParse(await readJson(req));
-        if (!body.success) {
-          sendJson(res, 400, { error: 'not an audit record' });
-          return;
-        }
-        const b = body.data;
-        const m = byId.get(b.machine);
-        if (!m || !m.simulated || !mayUseMachine(w.principal, m.id)) {
-          sendJson(res, 403, { error: 'the browser may only record commands it sent to simulated machines' });
-          return;
-        }
-        const ok = b.ok ?? (b.status !== undefined && b.status < 400);
-        record({
-          type: 'command',
-          result: ok ? 'ok' : 'error',
-          user: w.principal.name,
-          onBehalfOf: w.principal.onBehalfOf,
-          source: 'client',
-          machine: m.id,
-          method: b.method?.toUpperCase(),
-          path: b.path === undefined ? undefined : scrub(b.path),
-          commandId: b.commandId ?? b.command,
-          label: b.label,
-          status: b.status,
-          detail: b.result === undefined ? undefined : scrub(b.result),
-          error: b.error === undefined ? undefined : scrub(b.error),
-          address,
-        });
-        sendJson(res, 201, { ok: true });
         return;
       }
       case 'GET /api/discover/xtool': {
@@ -450,6 +373,11 @@ export function createApi(ctx: GatewayContext) {
         return;
       }
       default: {
+        const sim = SIM_API_PATH.exec(url.pathname);
+        if (sim) {
+          await simApi(req, res, sim[1] ?? '');
+          return;
+        }
         const forget = /^\/api\/tls\/([a-z0-9-]{1,40})$/.exec(url.pathname);
         if (method === 'DELETE' && forget) {
           const p = supervisorOnly(req, res, 'accepting a new certificate is for supervisors');

@@ -8,7 +8,8 @@ import { defaultDecision, type AccessDecision, type AccessRequest } from '../src
 import type { FamilyDescriptor } from '../src/fleet/contract';
 import { FaultySimulator } from '../src/fleet/sim';
 import { roleAtLeast, type MachineKind, type Role } from '../src/fleet/types';
-import { AuditLog, type AuditEntry } from './audit';
+import { AuditLog, type AuditEntry, type AuditLogOptions } from './audit';
+import { loggerFromEnv, Reachability, type Logger } from './log';
 import {
   DEFAULT_ELEVATION_S,
   DEFAULT_IDLE,
@@ -55,6 +56,13 @@ export interface GatewayOptions {
    * `server.allowedHosts`): `true` for any; IP addresses and localhost are always allowed.
    */
   allowedHosts?: true | readonly string[];
+  /** Where the gateway's log lines go (default: `SHOPDECK_LOG=json` or text, stdout/stderr). */
+  log?: Logger;
+  /**
+   * The audit writer (tests): rotation size and file count default to `SHOPDECK_AUDIT_MAX_BYTES`
+   * (10 MiB) and `SHOPDECK_AUDIT_KEEP` (5).
+   */
+  audit?: Omit<AuditLogOptions, 'writer'>;
 }
 
 export interface Principal {
@@ -90,6 +98,9 @@ export interface GatewayContext {
   readonly usersFile: string;
   readonly users: UserDirectory;
   readonly audit: AuditLog;
+  readonly log: Logger;
+  /** Which controllers answer: logs a line when a machine goes offline or comes back. */
+  readonly reachability: Reachability;
   readonly timeoutMs: number;
   readonly idle: IdleTimeouts;
   readonly elevationMs: number;
@@ -136,6 +147,15 @@ export interface GatewayContext {
   classify(m: MachineEntry, req: AccessRequest): AccessDecision;
   authorize(w: Who, m: MachineEntry, d: AccessDecision): Verdict;
   simulatorFor(m: MachineEntry): FaultySimulator | null;
+  /**
+   * Throws a simulated machine's simulator away (its sockets closed, the session the gateway held
+   * with it ended): the next request starts a fresh world without faults.
+   */
+  resetSimulator(m: MachineEntry): void;
+  /** The built-in demo fleet (no machines file, every machine simulated): demo jobs run. */
+  readonly builtInDemo: boolean;
+  /** Runs the simulator's "demo" control (a job in progress), when it has one. */
+  startDemoJob(m: MachineEntry): void;
 }
 
 export interface LiveSocket {
@@ -157,8 +177,16 @@ export function createContext(opts: GatewayOptions): GatewayContext {
   const config = opts.machines ?? loadMachines({ machinesFile: opts.machinesFile, env, cwd });
   const dataDir = dataDirPath({ dataDir: opts.dataDir, env, cwd });
   const usersFile = usersFilePath({ usersFile: opts.usersFile, dataDir, env, cwd });
-  const users = new UserDirectory(usersFile);
-  const audit = new AuditLog(dataDir);
+  const log = opts.log ?? loggerFromEnv(env);
+  const reachability = new Reachability(log);
+  const users = new UserDirectory(usersFile, log);
+  const audit = new AuditLog(dataDir, {
+    writer: 'queue',
+    maxBytes: envNumber(env, 'SHOPDECK_AUDIT_MAX_BYTES'),
+    keep: envNumber(env, 'SHOPDECK_AUDIT_KEEP'),
+    log,
+    ...opts.audit,
+  });
   const timeoutMs = opts.timeoutMs ?? envNumber(env, 'SHOPDECK_PROXY_TIMEOUT_MS') ?? 15_000;
   const idle: IdleTimeouts = {
     viewer: opts.idleTimeoutS?.viewer ?? envNumber(env, 'SHOPDECK_IDLE_VIEWER_S') ?? DEFAULT_IDLE.viewer,
@@ -235,7 +263,7 @@ export function createContext(opts: GatewayOptions): GatewayContext {
     try {
       audit.append({ ...e, time: e.time ?? nowIso() });
     } catch (err) {
-      console.error(`shopdeck: could not write the audit log: ${String(err)}`);
+      log.error('could not write the audit log', { error: String(err) });
     }
   };
   // Refusals of unauthenticated clients (and of the login/PIN limiter) are limited per address.
@@ -445,6 +473,33 @@ export function createContext(opts: GatewayOptions): GatewayContext {
     return sim;
   }
 
+  function resetSimulator(m: MachineEntry): void {
+    const held = heldSessions.get(m.id);
+    if (held) {
+      held.end();
+      heldSessions.delete(m.id);
+    }
+    const sim = sims.get(m.id);
+    if (!sim) return;
+    sims.delete(m.id);
+    sim.closeSockets();
+    sim.dispose();
+  }
+
+  const builtInDemo = config.file === null && config.machines.every((m) => m.simulated);
+
+  function startDemoJob(m: MachineEntry): void {
+    if (!m.simulated) return;
+    try {
+      simulatorFor(m)
+        ?.controls()
+        .find((c) => c.id === 'demo')
+        ?.run();
+    } catch (e) {
+      log.error(`${m.id}: the simulator's demo job did not start`, { machine: m.id, error: String(e) });
+    }
+  }
+
   function revalidateSockets(): void {
     if (users.mode === 'open') return;
     for (const [sock, live] of liveSockets) {
@@ -483,6 +538,8 @@ export function createContext(opts: GatewayOptions): GatewayContext {
     usersFile,
     users,
     audit,
+    log,
+    reachability,
     timeoutMs,
     idle,
     elevationMs,
@@ -507,6 +564,9 @@ export function createContext(opts: GatewayOptions): GatewayContext {
     classify,
     authorize,
     simulatorFor,
+    resetSimulator,
+    builtInDemo,
+    startDemoJob,
     state,
     liveSockets,
     revalidateSockets,

@@ -13,8 +13,8 @@ import type { UserRecord } from './users';
 
 /**
  * The gateway: the console's own server side and its trust boundary. This file assembles the
- * parts: `context.ts` (configuration, identity, access decisions), `api.ts` (`/api/*`),
- * `proxy-http.ts` and `proxy-ws.ts` (`/machines/<id>/*`).
+ * parts: `context.ts` (configuration, identity, access decisions, simulators), `api.ts`
+ * (`/api/*`; `sim-api.ts`: `/api/sim/<id>`), `proxy-http.ts` and `proxy-ws.ts` (`/machines/<id>/*`).
  */
 
 export type { Families, GatewayOptions, Principal } from './context';
@@ -33,6 +33,7 @@ export interface Gateway {
    * quietly to the restarted server. Returns how many were told.
    */
   goingAway(reason: string): number;
+  /** Shutdown: sockets, simulators, held sessions; starts closing the audit log (`audit.close()`). */
   close(): void;
 }
 
@@ -57,6 +58,15 @@ export function createGateway(opts: GatewayOptions): Gateway {
   // Sessions expire and users files change without a request: re-check bridged sockets often.
   const sweep = setInterval(() => ctx.revalidateSockets(), 2000);
   sweep.unref();
+  // The built-in demo fleet shows work in progress: each simulator's "demo" control (if it has
+  // one) starts a job, as an operator at the machine would. Once, in the gateway: every tab sees
+  // the same simulated world.
+  const demoJobs = ctx.builtInDemo
+    ? setTimeout(() => {
+        for (const m of config.machines) ctx.startDemoJob(m);
+      }, 1500)
+    : null;
+  demoJobs?.unref();
   const api = createApi(ctx);
   const proxy = createHttpProxy(ctx);
   const upgradeMachine = createWsProxy(ctx);
@@ -141,6 +151,7 @@ export function createGateway(opts: GatewayOptions): Gateway {
   function close(): void {
     state.closed = true;
     clearInterval(sweep);
+    if (demoJobs) clearTimeout(demoJobs);
     ctx.refusals.dispose();
     endHeldSessions(ctx); // held controller sessions end first (held-session.ts), sims still there
     for (const s of openSockets) s.terminate();
@@ -151,6 +162,11 @@ export function createGateway(opts: GatewayOptions): Gateway {
     sims.clear();
     httpAgent.destroy();
     httpsAgent.destroy();
+    // Queued audit entries are written and fsynced, the file closed; later ones are written
+    // directly. A server awaits `audit.close()` (the same promise) before it exits.
+    ctx.audit.close().catch((e: unknown) => {
+      ctx.log.error('could not write the audit log at shutdown', { error: String(e) });
+    });
   }
 
   function goingAway(reason: string): number {

@@ -20,6 +20,7 @@ import { auditTarget, splitTarget, type SplitTarget } from './paths';
 import type { GatewayContext, Verdict } from './context';
 import { crossSiteProblem } from './csrf';
 import type { AccessDecision } from '../src/fleet/access';
+import { unreachableReason } from './log';
 
 const MAX_CLASSIFY_BODY = 1024 * 1024;
 const MAX_SIM_BODY = 64 * 1024 * 1024;
@@ -67,7 +68,20 @@ export function createHttpProxy(ctx: GatewayContext) {
     classify,
     authorize,
     simulatorFor,
+    log,
+    reachability,
   } = ctx;
+
+  /**
+   * A failed upstream request: a controller that cannot be reached goes offline (one line per
+   * machine, reachability in log.ts); any other failure is logged as it happens.
+   */
+  function upstreamFailed(m: MachineEntry, e: Error & { code?: string }, timedOut: boolean): void {
+    const detail = redact(e.message, secretsOf.get(m.id) ?? []);
+    const reason = unreachableReason(e, timedOut);
+    if (reason) reachability.down(m.id, reason, detail);
+    else log.error(`${m.id}: ${detail}`, { machine: m.id });
+  }
 
   // ---------------------------------------------------------------- /machines (HTTP)
 
@@ -355,7 +369,7 @@ export function createHttpProxy(ctx: GatewayContext) {
       } catch (e) {
         const err = e instanceof Error ? e : new Error(String(e));
         const words = upstreamWords(m, err, false);
-        console.error(`shopdeck: ${m.id}: ${redact(err.message, forms)}`);
+        upstreamFailed(m, err, false);
         req.resume();
         done({ error: words });
         gatewayError(res, 502, words);
@@ -379,6 +393,8 @@ export function createHttpProxy(ctx: GatewayContext) {
     pending.add(upstream);
     let timedOut = false;
     let finished = false;
+    /** The browser went away and the gateway ended the request: not the controller's doing. */
+    let abandoned = false;
     const finish = (r: { status?: number; error?: string }): void => {
       if (finished) return;
       finished = true;
@@ -391,15 +407,18 @@ export function createHttpProxy(ctx: GatewayContext) {
     });
     upstream.on('error', (e: Error & { code?: string }) => {
       const words = upstreamWords(m, e, timedOut);
-      console.error(`shopdeck: ${m.id}: ${redact(e.message, forms)}`);
+      if (!abandoned && !ctx.state.closed) upstreamFailed(m, e, timedOut);
       finish({ error: words });
       if (!res.headersSent) gatewayError(res, timedOut ? 504 : 502, words);
       else res.destroy();
     });
     res.on('close', () => {
-      if (!res.writableFinished) upstream.destroy();
+      if (res.writableFinished) return;
+      abandoned = true;
+      upstream.destroy();
     });
     upstream.on('response', (up) => {
+      reachability.up(m.id);
       const status = up.statusCode ?? 502;
       // Held session (held-session.ts): a read whose key expired is sent once more with a new key.
       const again = (pq?: string): void =>

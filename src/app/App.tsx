@@ -2,13 +2,11 @@ import { useEffect, useState } from 'react';
 import { useStore } from 'zustand';
 import { controllers } from '../controllers';
 import { authStore } from '../fleet/auth';
-import { fleetStore } from '../fleet/fleet';
-import { EmptyState, Notice } from '../ui';
+import { EmptyState } from '../ui';
 import { AlarmBanner, useBlockingAlarms } from './AlarmBanner';
 import { AuditPage } from './audit/AuditPage';
 import { LoginPage } from './auth/LoginPage';
 import { AuthMenu } from './auth/UserControls';
-import { demoState } from './boot';
 import { ErrorBoundary } from './ErrorBoundary';
 import { FleetPage } from './FleetPage';
 import { MachinePage } from './MachinePage';
@@ -36,8 +34,6 @@ export function App() {
   const mode = useStore(authStore, (s) => s.mode);
   const user = useStore(authStore, (s) => s.user);
   const openOnNetwork = useStore(authStore, (s) => s.openOnNetwork === true);
-  const machines = useStore(fleetStore, (s) => s.machines);
-  const anySimulated = machines.some((m) => m.simulated);
   const blocking = useBlockingAlarms();
   const familyPages = Object.values(controllers).flatMap((m) =>
     (m?.pages ?? []).map((p) => ({ kind: m.kind, ...p })),
@@ -115,11 +111,6 @@ export function App() {
               ? 'Open mode on the network (SHOPDECK_OPEN=1): anyone who can reach this computer can control these machines. Add users to require a login (see the README).'
               : 'Open mode: no login is needed, and the console only answers on this computer. Add users before serving it to tablets (see the README).'}
           </div>
-        )}
-        {anySimulated && demoState.mode === 'none' && demoState.error && (
-          <Notice tone="bad" title="The simulators could not start in this browser">
-            {demoState.error}
-          </Notice>
         )}
         {mode === 'secured' && !user && route.name !== 'login' ? (
           <main className="main">

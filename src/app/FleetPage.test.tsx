@@ -11,9 +11,6 @@ function fakeModule(kind: 'xtool' | 'duet', TileExtra?: () => never): Controller
     kind,
     label: kind === 'xtool' ? 'Fake laser' : 'Fake printer',
     access: () => ({ role: 'viewer', command: false, label: 'read' }),
-    createSimulator: () => {
-      throw new Error('not used');
-    },
     createSession: (ctx: SessionContext): MachineSession => ({
       machine: ctx.machine,
       ctx,

@@ -1,16 +1,15 @@
-import { useState, type ComponentType } from 'react';
+import { type ComponentType } from 'react';
 import { useStore } from 'zustand';
 import { controllers } from '../controllers';
 import { linkWords, type TabProps, type MachineSession } from '../fleet/contract';
 import { fleetStore, getRuntime, type MachineRuntime } from '../fleet/fleet';
 import { LogView, useNow, useRole, useSnapshot } from '../fleet/react';
 import { roleAtLeast } from '../fleet/types';
-import { Badge, Button, EmptyState, Notice, Panel, formatAge, formatDateTime } from '../ui';
-import { simulatorFor } from './demo';
+import { Badge, EmptyState, Notice, Panel, formatAge, formatDateTime } from '../ui';
 import { ErrorBoundary } from './ErrorBoundary';
 import { Link } from './router';
+import { SimulatorPanel } from './SimulatorPanel';
 import { ACTIVITY_TONE, ACTIVITY_WORDS, LINK_TONE, STALE_MS } from './status';
-import type { Faults } from '../fleet/sim';
 
 interface PageTab {
   id: string;
@@ -60,7 +59,8 @@ function MachinePageBody({ rt, tab }: { rt: MachineRuntime; tab: string | null }
     }
   }
   tabs.push({ id: 'events', label: 'Event log', render: () => <LogView log={rt.log} /> });
-  if (info.simulated)
+  // The simulator runs in the gateway; driving it is for supervisors (gateway/sim-api.ts).
+  if (info.simulated && roleAtLeast(role, 'supervisor'))
     tabs.push({ id: 'simulator', label: 'Simulator', render: () => <SimulatorPanel id={info.id} /> });
   const current = tabs.find((t) => t.id === tab) ?? tabs[0];
   const LoginForm = mod?.LoginForm as ComponentType<TabProps<MachineSession>> | undefined;
@@ -97,8 +97,8 @@ function MachinePageBody({ rt, tab }: { rt: MachineRuntime; tab: string | null }
       </div>
       {info.simulated && (
         <div className="sim-banner" role="note" data-testid="simulated-banner">
-          Simulated machine: everything on this page comes from a simulator running in this browser. Nothing
-          real moves.
+          Simulated machine: everything on this page comes from a simulator running in the console’s server.
+          Nothing real moves.
         </div>
       )}
       {s.problem && s.link !== 'online' && (
@@ -143,81 +143,6 @@ function MachinePageBody({ rt, tab }: { rt: MachineRuntime; tab: string | null }
           </ErrorBoundary>
         )}
       </div>
-    </div>
-  );
-}
-
-/** Developer panel of a simulated machine: fault injection and stand-ins for the physical world. */
-function SimulatorPanel({ id }: { id: string }) {
-  const sim = simulatorFor(id);
-  const [faults, setFaults] = useState<Faults | null>(sim ? { ...sim.faults } : null);
-  if (!sim || !faults) return <EmptyState>This simulator is not running in this page.</EmptyState>;
-  const update = (f: Partial<Faults>) => {
-    sim.setFaults(f);
-    setFaults({ ...sim.faults });
-  };
-  const controls = sim.controls();
-  return (
-    <div className="ui-grid">
-      <Panel title="Physical world (simulated)">
-        {controls.length === 0 && <EmptyState>No controls for this simulator.</EmptyState>}
-        <div className="ui-row">
-          {controls.map((c) => (
-            <Button key={c.id} onClick={() => c.run()} data-testid={`sim-control-${c.id}`}>
-              {c.label}
-            </Button>
-          ))}
-        </div>
-      </Panel>
-      <Panel title="Fault injection">
-        <div className="ui-row">
-          <label className="check">
-            <input
-              type="checkbox"
-              checked={faults.drop}
-              onChange={(e) => update({ drop: e.target.checked })}
-              data-testid="fault-drop"
-            />{' '}
-            Drop connections
-          </label>
-          <label className="check">
-            <input
-              type="checkbox"
-              checked={faults.http5xx}
-              onChange={(e) => update({ http5xx: e.target.checked })}
-              data-testid="fault-5xx"
-            />{' '}
-            Answer 503
-          </label>
-          <label className="check">
-            <input
-              type="checkbox"
-              checked={faults.malformed}
-              onChange={(e) => update({ malformed: e.target.checked })}
-              data-testid="fault-malformed"
-            />{' '}
-            Malformed bodies
-          </label>
-          <label className="check">
-            Latency{' '}
-            <select
-              className="ui-input"
-              value={faults.latencyMs}
-              onChange={(e) => update({ latencyMs: Number(e.target.value) })}
-              data-testid="fault-latency"
-            >
-              {[0, 200, 1000, 3000, 10000].map((v) => (
-                <option key={v} value={v}>
-                  {v} ms
-                </option>
-              ))}
-            </select>
-          </label>
-          <Button onClick={() => sim.closeSockets()} data-testid="fault-close-sockets">
-            Close sockets
-          </Button>
-        </div>
-      </Panel>
     </div>
   );
 }

@@ -20,9 +20,6 @@ function fakeModule(): ControllerModule {
     kind: 'duet',
     label: 'Fake printer',
     access: () => ({ role: 'viewer', command: false, label: 'read' }),
-    createSimulator: () => {
-      throw new Error('not used');
-    },
     createSession: (ctx: SessionContext): MachineSession => ({
       machine: ctx.machine,
       ctx,

@@ -7,8 +7,9 @@ import { touchcutFamily } from './touchcut/family';
 import { xtoolFamily } from './xtool/family';
 
 /**
- * Node-safe list of families: access rules, gateway hints, simulators. Used by the gateway,
- * `npm run sim` and the browser. Add a family here and in `index.ts`.
+ * Node-safe list of families: access rules, gateway hints, simulators. Used by the gateway and
+ * `npm run sim`, never by the browser (it would bring every simulator into the page; the page's
+ * modules spread each family's `declaration.ts`). Add a family here and in `index.ts`.
  */
 export const families: Record<MachineKind, FamilyDescriptor> = {
   touchcut: touchcutFamily,

@@ -16,8 +16,12 @@ import type { LinkState, MachineInfo, MachineKind, MachineSnapshot, Role } from 
  * simulator) — the gateway must not load React views, hence the two lists.
  */
 
-/** Node-safe part of a family: used by the gateway, `npm run sim` and the browser alike. */
-export interface FamilyDescriptor {
+/**
+ * Node-safe declaration of a family (`<kind>/declaration.ts`): used by the gateway, `npm run sim`
+ * and the browser alike. No simulator: the browser never loads one (simulated machines are
+ * answered by the gateway), so the production bundle carries none.
+ */
+export interface FamilyDeclaration {
   kind: MachineKind;
   /** "xTool D-series" */
   label: string;
@@ -26,6 +30,10 @@ export interface FamilyDescriptor {
   /** Requests whose body the gateway must read to classify them. */
   accessNeedsBody?: BodyNeeded;
   gateway?: GatewayHints;
+}
+
+/** A family as Node sees it (`<kind>/family.ts`): its declaration and its simulator. */
+export interface FamilyDescriptor extends FamilyDeclaration {
   createSimulator: SimulatorFactory;
 }
 
@@ -144,7 +152,7 @@ export interface TabDecl<S extends MachineSession> {
   role?: Role;
 }
 
-export interface ControllerModule<S extends MachineSession = MachineSession> extends FamilyDescriptor {
+export interface ControllerModule<S extends MachineSession = MachineSession> extends FamilyDeclaration {
   createSession(ctx: SessionContext): S;
   /** Tabs of the machine page; the first is the overview. */
   tabs: TabDecl<S>[];

@@ -4,7 +4,7 @@ import { CONSOLE_HEADERS, machineBase } from './origin';
 
 /**
  * Typed HTTP client for one machine. Every request goes to the console's own origin,
- * `/machines/<id>/<controller path>`; the gateway (or msw in demo mode) answers.
+ * `/machines/<id>/<controller path>`; the gateway (or msw, in tests) answers.
  */
 
 export type QueryValue = string | number | boolean | null | undefined;

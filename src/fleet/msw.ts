@@ -3,9 +3,9 @@ import { SimDropped, type Simulator } from './sim';
 import { apiOrigin, wsUrlFor } from './origin';
 
 /**
- * msw handlers that let a simulator answer `/machines/<id>/...` inside the page (demo mode,
- * component tests, browser tests) or in Node tests, exactly as the gateway would forward to a
- * real controller.
+ * msw handlers that let a simulator answer `/machines/<id>/...` in tests (component tests, Node
+ * tests), exactly as the gateway would forward to a real controller. Tests only: the console
+ * itself never runs msw (simulated machines are answered by the gateway).
  */
 export function simulatorHandlers(
   machineId: string,

@@ -1,8 +1,9 @@
 import type { MachineKind } from './types';
 
 /**
- * The simulator contract. One implementation per family feeds both msw (demo mode, tests)
- * and the Node server of `npm run sim`. A simulator speaks the controller's own protocol:
+ * The simulator contract. One implementation per family feeds the gateway (simulated machines,
+ * gateway/context.ts `simulatorFor`), the Node server of `npm run sim` and msw in tests; never
+ * the browser's production bundle. A simulator speaks the controller's own protocol:
  * paths, status codes, error bodies and quirks as the protocol document and fixtures say.
  *
  * Everything is simulated: the UI and the docs say so wherever a simulator answers.

@@ -1,5 +1,6 @@
 import AxeBuilder from '@axe-core/playwright';
 import { expect, test, type Page, type TestInfo } from '@playwright/test';
+import { resetSimulators } from './simulators';
 
 /**
  * Accessibility: axe on every page of the console, at the tablet and the desktop size (the two
@@ -9,7 +10,7 @@ import { expect, test, type Page, type TestInfo } from '@playwright/test';
  * Pages: the fleet, each family's machine page and each of its tabs (open mode: the supervisor
  * sees them all), the family pages (xTool "Find lasers"), the audit page and the login page; and
  * the dialogs: a confirmation, a Duet message box, the blocking alarm.
- * Navigation is in-app (a reload would restart the in-page simulators).
+ * Navigation is in-app. The simulators run in the server: each test starts from a fresh world.
  */
 
 const MACHINES = ['demo-xtool', 'demo-touchcut', 'demo-duet', 'demo-prunt', 'demo-g2core'];
@@ -59,6 +60,10 @@ function sections(page: Page) {
 }
 
 test.describe('accessibility (axe)', () => {
+  test.beforeEach(async ({ request }) => {
+    await resetSimulators(request);
+  });
+
   test('fleet page', async ({ page }, info) => {
     await page.goto('/');
     for (const id of MACHINES)

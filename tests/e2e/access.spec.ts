@@ -8,8 +8,8 @@ import bcrypt from 'bcryptjs';
 
 /**
  * Access control end to end, through the real gateway (vite preview) with a users file, against
- * the xTool simulator served as hardware by `npm run sim` (so every request really crosses the
- * gateway, unlike the in-page demo simulators):
+ * the xTool simulator served as hardware by `npm run sim` (so every request crosses the gateway
+ * to a real server, as to a laser on the network):
  * a viewer sees a running job but has no controls, and a crafted request is refused by the
  * gateway; an operator pauses; a supervisor edits a setting; the audit page shows all three.
  */

@@ -1,10 +1,11 @@
 import { expect, test, type Page } from '@playwright/test';
+import { resetSimulators } from './simulators';
 
 /**
  * The pen test, in a browser: a controller's help text, update URL and file names try to make the
  * console's page reach other machines (`%2e%2e/acc-laser/system?action=…`) or the console's API.
- * The simulated Prunt (`demo-prunt`, msw in the page) answers; an init script rewrites its answers
- * on their way into the app (whatever serves them, service worker or not), so the attack arrives
+ * The simulated Prunt (`demo-prunt`, its simulator in the console's server) answers; an init
+ * script rewrites its answers on their way into the app, so the attack arrives
  * exactly where a hostile controller would put it. Nothing may be requested outside
  * `/machines/demo-prunt/`, and no link may lead anywhere but an external https page.
  *
@@ -110,6 +111,10 @@ function outside(urls: string[], origin: string): string[] {
 }
 
 test.describe('controller-supplied links and images stay on their machine', () => {
+  test.beforeEach(async ({ request }) => {
+    await resetSimulators(request, [ID]);
+  });
+
   test('Help text: no image outside /machines/demo-prunt/, links only to external https', async ({
     page,
   }, info) => {

@@ -1,8 +1,9 @@
 import { expect, test, type Page } from '@playwright/test';
+import { resetSimulators } from './simulators';
 
 /**
- * Duet (DSF) on the tablet layout, against the simulated printer `demo-duet` (msw in the page).
- * In-app navigation only: a reload would restart the simulators.
+ * Duet (DSF) on the tablet layout, against the simulated printer `demo-duet` (its simulator runs
+ * in the console's server; the Simulator tab drives it through `/api/sim/<id>`).
  */
 
 const ID = 'demo-duet';
@@ -23,6 +24,10 @@ async function simControl(page: Page, control: string): Promise<void> {
 test.describe('Duet (DSF)', () => {
   test.beforeEach(({}, info) => {
     test.skip(info.project.name !== 'tablet', 'tablet layout only');
+  });
+  // The simulators run in the server for the whole run: each test starts from a fresh world.
+  test.beforeEach(async ({ request }) => {
+    await resetSimulators(request, [ID]);
   });
 
   test('start, pause and cancel a simulated print', async ({ page }) => {

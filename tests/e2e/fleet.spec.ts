@@ -1,8 +1,12 @@
 import { expect, test } from '@playwright/test';
-
-const FAMILIES = ['demo-xtool', 'demo-touchcut', 'demo-duet', 'demo-prunt', 'demo-g2core'];
+import { DEMO_MACHINES as FAMILIES, resetSimulators } from './simulators';
 
 test.describe('fleet', () => {
+  // The simulators run in the server for the whole run: each test starts from a fresh world.
+  test.beforeEach(async ({ request }) => {
+    await resetSimulators(request);
+  });
+
   test('shows every demo machine with its state in words and opens a bookmarkable machine page', async ({
     page,
   }) => {
@@ -57,9 +61,23 @@ test.describe('fleet', () => {
     await page.getByTestId('fault-drop').check();
     await page.getByTestId('fault-close-sockets').click();
     await expect(page.getByTestId('machine-link')).not.toHaveText('Online', { timeout: 30_000 });
-    // Back to the fleet inside the same page (a reload would restart the simulators).
-    await page.getByRole('navigation', { name: 'Main' }).getByRole('link', { name: 'Fleet' }).click();
-    await expect(page.getByTestId('tile-demo-prunt').getByTestId('tile-link')).not.toHaveText('Online');
+    // The fault is the server's simulator's: a fresh load of the fleet still sees it.
+    await page.goto('/');
+    await expect(page.getByTestId('tile-demo-prunt').getByTestId('tile-link')).not.toHaveText('Online', {
+      timeout: 30_000,
+    });
     await expect(page.getByTestId('tile-demo-duet').getByTestId('tile-link')).toHaveText('Online');
+  });
+
+  test('every tab sees the same simulated world', async ({ page, context }) => {
+    await page.goto('/m/demo-xtool/simulator');
+    await expect(page.getByTestId('machine-link')).toHaveText('Online');
+    const other = await context.newPage();
+    await other.goto('/');
+    await expect(other.getByTestId('tile-demo-xtool').getByTestId('tile-link')).toHaveText('Online');
+    await page.getByTestId('sim-control-flame').click();
+    await expect(other.getByTestId('blocking-alarm')).toContainText('FLAME DETECTED');
+    await expect(page.getByTestId('blocking-alarm')).toContainText('FLAME DETECTED');
+    await other.close();
   });
 });

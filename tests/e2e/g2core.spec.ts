@@ -1,8 +1,9 @@
 import { expect, test, type Page } from '@playwright/test';
+import { resetSimulators } from './simulators';
 
 /**
- * g2core CNC over the REST design, against the simulated router `demo-g2core` (msw in the page).
- * Everything the machine says here is simulated.
+ * g2core CNC over the REST design, against the simulated router `demo-g2core` (its simulator runs
+ * in the console's server). Everything the machine says here is simulated.
  */
 
 const ID = 'demo-g2core';
@@ -28,6 +29,11 @@ async function asRole(page: Page, role: 'operator' | 'supervisor'): Promise<void
 const JOB = ['G21 G90', ...Array.from({ length: 10 }, (_, i) => `G1 X${(i + 1) * 10} F300`)].join('\n');
 
 test.describe('g2core', () => {
+  // The simulators run in the server for the whole run: each test starts from a fresh world.
+  test.beforeEach(async ({ request }) => {
+    await resetSimulators(request, [ID]);
+  });
+
   test('an operator runs a small job, holds, resumes and kills it', async ({ page }, info) => {
     test.skip(info.project.name !== 'tablet', 'tablet layout');
     await asRole(page, 'operator');

@@ -1,7 +1,9 @@
 import { expect, test, type Page } from '@playwright/test';
+import { resetSimulators } from './simulators';
 
 /**
- * Prunt config editor against the simulated board `demo-prunt` (module API, msw in the page).
+ * Prunt config editor against the simulated board `demo-prunt` (module API; its simulator runs in
+ * the console's server).
  * A supervisor changes a stepper current on its tab, reviews, saves, sees the controller's error
  * under that field, fixes it, saves again and reloads the server to apply.
  */
@@ -15,6 +17,11 @@ function section(page: Page, name: string) {
 const FIELD = 'Steppers$Steppers$STEPPER_1$Run current';
 
 test.describe('Prunt config editor', () => {
+  // The simulators run in the server for the whole run: each test starts from a fresh world.
+  test.beforeEach(async ({ request }) => {
+    await resetSimulators(request, [ID]);
+  });
+
   test('a supervisor edits a stepper current, sees the server error, fixes it and reloads the server', async ({
     page,
   }) => {

@@ -1,8 +1,10 @@
 import { expect, test, type Page } from '@playwright/test';
+import { resetSimulators } from './simulators';
 
 /**
- * Kinetic TouchCut against the simulated plasma table `demo-touchcut` (msw in the page). The
- * simulator is built from the manual only; it stands in for the gateway's API key too.
+ * Kinetic TouchCut against the simulated plasma table `demo-touchcut` (its simulator runs in the
+ * console's server). The simulator is built from the manual only; it stands in for the API key a
+ * gateway would add for a real machine too.
  */
 
 const ID = 'demo-touchcut';
@@ -17,6 +19,11 @@ async function actAs(page: Page, name: string, role: 'operator' | 'supervisor'):
 }
 
 test.describe('Kinetic TouchCut', () => {
+  // The simulators run in the server for the whole run: each test starts from a fresh world.
+  test.beforeEach(async ({ request }) => {
+    await resetSimulators(request, [ID]);
+  });
+
   test('a supervisor picks last week and reads the consumables', async ({ page }, info) => {
     test.skip(info.project.name !== 'desktop', 'desktop layout only');
     await actAs(page, 'sue', 'supervisor');

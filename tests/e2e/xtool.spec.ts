@@ -1,9 +1,12 @@
 import { expect, test, type Page } from '@playwright/test';
+import { resetSimulators, simulator } from './simulators';
 
 /**
- * xTool D-series on the tablet layout, against the simulated laser `demo-xtool` (msw in the page).
- * The simulator's developer panel stands in for the physical world: loading a job as the vendor
- * app would, the machine's button, a flame under the laser.
+ * xTool D-series on the tablet layout, against the simulated laser `demo-xtool` (its simulator
+ * runs in the console's server). The simulator's controls stand in for the physical world:
+ * loading a job as the vendor app would, the machine's button, a flame under the laser. A
+ * supervisor has them on the Simulator tab; for the operator the test drives them through the
+ * gateway (`/api/sim/<id>`), as someone at the machine would.
  */
 
 const ID = 'demo-xtool';
@@ -23,30 +26,30 @@ async function asOperator(page: Page): Promise<void> {
   );
 }
 
-async function simControl(page: Page, control: string): Promise<void> {
-  await section(page, 'Simulator').click();
-  await page.getByTestId(`sim-control-${control}`).click();
-}
-
 test.describe('xTool D-series', () => {
   test.beforeEach(({}, info) => {
     test.skip(info.project.name !== 'tablet', 'tablet layout only');
   });
+  // The simulators run in the server for the whole run: each test starts from a fresh world.
+  test.beforeEach(async ({ request }) => {
+    await resetSimulators(request, [ID]);
+  });
 
-  test('an operator pauses and resumes a simulated job', async ({ page }) => {
+  test('an operator pauses and resumes a simulated job', async ({ page, request }) => {
     await asOperator(page);
     await page.goto(`/m/${ID}`);
     await expect(page.getByTestId('machine-link')).toHaveText('Online');
-    // Operators see job controls but not the supervisor tabs.
+    // Operators see job controls but not the supervisor tabs, nor the simulator's.
     await expect(section(page, 'G-code')).toHaveCount(0);
     await expect(section(page, 'Firmware')).toHaveCount(0);
+    await expect(section(page, 'Simulator')).toHaveCount(0);
 
-    await simControl(page, 'load-job');
+    await simulator(request, ID, 'world', 'load-job');
     await section(page, 'Status').click();
     await expect(page.getByTestId('xtool-press-button')).toBeVisible();
     await expect(page.getByTestId('machine-label')).toContainText('press the button on the machine');
 
-    await simControl(page, 'button');
+    await simulator(request, ID, 'world', 'button');
     await section(page, 'Status').click();
     await expect(page.getByTestId('xtool-state')).toHaveText('running');
 
@@ -74,7 +77,7 @@ test.describe('xTool D-series', () => {
     await expect(alarm).toBeVisible();
     await expect(alarm).toContainText('FLAME DETECTED');
 
-    // Another page of the console (in-app navigation: a reload would restart the simulators).
+    // Another page of the console (in-app navigation; a reload would show the alarm too).
     await page.evaluate(() => {
       history.pushState(null, '', '/');
       window.dispatchEvent(new PopStateEvent('popstate'));

@@ -23,8 +23,8 @@ import {
  *
  * Through the gateway there is no session key: the gateway holds the DSF session (it connects,
  * keeps the key and adds it on the way out; `src/controllers/duet/gateway.ts`) and answers
- * `connect` without `sessionKey`. Only where a simulator answers in the page (msw: demo mode,
- * tests) does `connect` give a key, which is then sent as `X-Session-Key` and on the socket URL.
+ * `connect` without `sessionKey`. Only where a simulator answers in the page (msw, in tests) does
+ * `connect` give a key, which is then sent as `X-Session-Key` and on the socket URL.
  *
  * File paths are whole RRF paths ("0:/gcodes/a b.gcode") and go into the URL as ONE
  * percent-encoded segment, as Duet Web Control does (`encodeURIComponent(filename)`).

@@ -1,5 +1,5 @@
 import { defineController } from '../../fleet/contract';
-import { duetFamily } from './family';
+import { duetDeclaration } from './declaration';
 import { DuetSession } from './session';
 import { Console } from './views/Console';
 import { Files } from './views/Files';
@@ -10,7 +10,7 @@ import { Plugins } from './views/Plugins';
 import { TileExtra } from './views/Tile';
 
 export const duetModule = defineController<DuetSession>({
-  ...duetFamily,
+  ...duetDeclaration,
   createSession: (ctx) => new DuetSession(ctx),
   tabs: [
     { id: 'overview', label: 'Overview', Component: Overview },

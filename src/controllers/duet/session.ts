@@ -18,7 +18,7 @@ export { HISTORY_POINTS, type CodeArgs, type DuetState, type UploadState } from 
 
 /**
  * One Duet (DSF) machine on the session kernel: `GET /machine/connect` (through the gateway: no
- * key, the gateway holds the DSF session; a key only where msw answers), then `WS /machine` for
+ * key, the gateway holds the DSF session; a key only where msw answers, in tests), then `WS /machine` for
  * the object model (full model, then patches, `OK\n` after each). The socket's liveness is its
  * declared heartbeat: `PING\n` after 2 s of silence, dead when nothing answers within 4 s more
  * (or when the first model is 6 s late), then the socket reconnects on its backoff. Session

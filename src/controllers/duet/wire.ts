@@ -47,7 +47,7 @@ function holey<T extends z.ZodType>(item: T) {
 /**
  * `GET /machine/connect` → `{ sessionKey, … }`. `sessionKey` is optional: the gateway holds the DSF
  * session and answers without it (the other fields pass); it is also missing from DSF without
- * password protection. Only a simulator answering in the page (msw) gives one.
+ * password protection. Only a simulator answering in the page (msw, in tests) gives one.
  */
 export const connectResponse = z.looseObject({ sessionKey: strOrNull });
 export type ConnectResponse = z.infer<typeof connectResponse>;

@@ -1,16 +1,12 @@
 import type { FamilyDescriptor } from '../../fleet/contract';
-import { g2coreAccess, g2coreAccessNeedsBody } from './access';
+import { g2coreDeclaration } from './declaration';
 import { createG2coreSimulator } from './sim/simulator';
 
 /**
- * The Node-safe part of the g2core family: access rules, simulator. No React, views or CSS here:
- * the gateway imports this file in Node. No gateway hints: the REST design has no secrets and
- * no WebSocket.
+ * The g2core family as Node sees it: its declaration and the simulator. The gateway and
+ * `npm run sim` import it; the browser imports `declaration.ts` only (no simulator in the page).
  */
 export const g2coreFamily: FamilyDescriptor = {
-  kind: 'g2core',
-  label: 'g2core CNC (REST)',
-  access: g2coreAccess,
-  accessNeedsBody: g2coreAccessNeedsBody,
+  ...g2coreDeclaration,
   createSimulator: createG2coreSimulator,
 };

@@ -1,5 +1,5 @@
 import { defineController } from '../../fleet/contract';
-import { g2coreFamily } from './family';
+import { g2coreDeclaration } from './declaration';
 import { G2coreSession } from './session';
 import { ConsoleTab } from './views/Console';
 import './views/g2core.css';
@@ -11,7 +11,7 @@ import { G2coreTile } from './views/Tile';
 
 /** The g2core controller module: session, tabs. The machine page adds Log and Simulator tabs. */
 export const g2coreModule = defineController<G2coreSession>({
-  ...g2coreFamily,
+  ...g2coreDeclaration,
   createSession: (ctx) => new G2coreSession(ctx),
   tabs: [
     { id: 'overview', label: 'Machine', Component: OverviewTab },

@@ -1,20 +1,15 @@
 import type { FamilyDescriptor } from '../../fleet/contract';
-import { pruntAccess } from './access';
+import { pruntDeclaration } from './declaration';
 import { createPruntSimulator } from './sim/sim';
 
 /**
- * Node-safe part of the Prunt family (no React, no views, no CSS): the gateway imports it.
- * The simulator speaks the module API (the document's) unless the machine id mentions "flat"
- * or "2025", which gives the deployed 2025 flat API with its exact fixtures.
+ * The Prunt family as Node sees it: its declaration and the simulator (the gateway and
+ * `npm run sim` import it; the browser imports `declaration.ts` only). The simulator speaks the
+ * module API (the document's) unless the machine id mentions "flat" or "2025", which gives the
+ * deployed 2025 flat API with its exact fixtures.
  */
 export const pruntFamily: FamilyDescriptor = {
-  kind: 'prunt',
-  label: 'Prunt',
-  access: pruntAccess,
-  gateway: {
-    // Pictures in the schema's help texts (`<image src="extras/images/stepper_1.png">`).
-    imageAnswer: (path) => /^\/extras\/images\/[^/]+\.(png|jpe?g|gif|webp)$/i.test(path),
-  },
+  ...pruntDeclaration,
   createSimulator: (opts) =>
     createPruntSimulator({ ...opts, api: /flat|2025/.test(opts.id) ? 'flat' : 'module' }),
 };

@@ -1,5 +1,5 @@
 import { defineController } from '../../fleet/contract';
-import { pruntFamily } from './family';
+import { pruntDeclaration } from './declaration';
 import { PruntSession } from './session';
 import { ConfigTab } from './views/ConfigTab';
 import { ConsoleTab } from './views/ConsoleTab';
@@ -9,7 +9,7 @@ import { StatusTab } from './views/StatusTab';
 
 /** The machine page adds the Log tab (the machine log carries the controller's Log lines). */
 export const pruntModule = defineController<PruntSession>({
-  ...pruntFamily,
+  ...pruntDeclaration,
   createSession: (ctx) => new PruntSession(ctx),
   tabs: [
     { id: 'overview', label: 'Overview', Component: OverviewTab },

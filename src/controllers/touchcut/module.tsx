@@ -1,5 +1,5 @@
 import { defineController } from '../../fleet/contract';
-import { touchcutFamily } from './family';
+import { touchcutDeclaration } from './declaration';
 import { TouchcutSession } from './session';
 import { ProgramsView, UnloaderView } from './views/DataViews';
 import { LoginForm } from './views/LoginForm';
@@ -15,7 +15,7 @@ import './views/touchcut.css';
  * user's own password change).
  */
 export const touchcutModule = defineController<TouchcutSession>({
-  ...touchcutFamily,
+  ...touchcutDeclaration,
   createSession: (ctx) => new TouchcutSession(ctx),
   tabs: [
     { id: 'status', label: 'Status', Component: StatusView },

@@ -1,5 +1,5 @@
 import { splitPath, type Simulator } from '../../fleet/sim';
-import { touchcutGateway } from './family';
+import { touchcutGateway } from './declaration';
 
 /**
  * Test helper (not used by the app): a stand-in for the console's gateway in front of a

@@ -1,19 +1,12 @@
 import type { FamilyDescriptor } from '../../fleet/contract';
-import { xtoolAccess } from './access';
+import { xtoolDeclaration } from './declaration';
 import { createXtoolSimulator } from './sim/simulator';
 
 /**
- * The Node-safe part of the xTool D-series family: access rules, gateway hints, simulator.
- * No React, views or CSS here: the gateway imports this file in Node.
+ * The xTool D-series family as Node sees it: its declaration and the simulator. The gateway and
+ * `npm run sim` import it; the browser imports `declaration.ts` only (no simulator in the page).
  */
 export const xtoolFamily: FamilyDescriptor = {
-  kind: 'xtool',
-  label: 'xTool D-series',
-  access: xtoolAccess,
-  gateway: {
-    // The status WebSocket is on :8081 of the same host (document, "TCP Ports"); the client
-    // opens `/machines/<id>/`, i.e. the root path of the device's :8081.
-    defaultWsPort: 8081,
-  },
+  ...xtoolDeclaration,
   createSimulator: createXtoolSimulator,
 };

@@ -1,5 +1,5 @@
 import { defineController } from '../../fleet/contract';
-import { xtoolFamily } from './family';
+import { xtoolDeclaration } from './declaration';
 import { XtoolSession } from './session';
 import { Console } from './views/Console';
 import { Discover } from './views/Discover';
@@ -11,7 +11,7 @@ import { TileExtra } from './views/TileExtra';
 
 /** The browser side of the xTool D-series family: session, tabs, fleet tile extra, "Find lasers". */
 export const xtoolModule = defineController<XtoolSession>({
-  ...xtoolFamily,
+  ...xtoolDeclaration,
   createSession: (ctx) => new XtoolSession(ctx),
   tabs: [
     { id: 'overview', label: 'Status', Component: Overview },

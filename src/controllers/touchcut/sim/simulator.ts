@@ -6,6 +6,7 @@ import {
   type Simulator,
 } from '../../../fleet/sim';
 import { TOUCHCUT_PRIVILEGES } from '../client';
+import { defaultUsers, type SimUser } from '../sim-users';
 import { MANUAL_EXAMPLE_API_KEY } from './data/manual';
 import { Canvas } from './png';
 import {
@@ -37,6 +38,8 @@ import {
  *   second of the previous request, the previous screenshot will be returned").
  */
 
+export { defaultUsers, type SimUser } from '../sim-users';
+
 export const SIM_WEB_ACCESS = 'Web Access';
 const ALL_PRIVILEGES = [SIM_WEB_ACCESS, ...TOUCHCUT_PRIVILEGES];
 
@@ -44,12 +47,6 @@ export interface SimGroup {
   name: string;
   privileges: string[];
   apiKey: string | null;
-}
-
-export interface SimUser {
-  username: string;
-  password: string;
-  group: string;
 }
 
 /** Simulated API key of the "Monitor" group (what a gateway would hold for a demo machine). */
@@ -82,17 +79,6 @@ export function defaultGroups(): SimGroup[] {
     // Web access but no "Monitor System": status works, monitor and screenshot answer 403.
     { name: 'Office', privileges: [SIM_WEB_ACCESS, 'Modify Current User'], apiKey: null },
     { name: 'Guest', privileges: [], apiKey: null },
-  ];
-}
-
-/** Simulated users (the login form of a simulated machine lists them). */
-export function defaultUsers(): SimUser[] {
-  return [
-    { username: 'admin', password: 'admin', group: 'Administrator' },
-    { username: 'operator', password: 'operator', group: 'User' },
-    { username: 'viewer', password: 'viewer', group: 'Monitor' },
-    { username: 'office', password: 'office', group: 'Office' },
-    { username: 'guest', password: 'guest', group: 'Guest' },
   ];
 }
 
@@ -185,9 +171,8 @@ export class TouchcutSimulator implements Simulator {
    */
   demoJob = false;
   /**
-   * Demo stand-in for the gateway. A simulated machine has no secrets in the machines file and,
-   * in demo mode, msw answers in the page with no gateway in between; so the simulator plays the
-   * gateway's part: a request with neither a JWT nor a key is treated as carrying the "Monitor"
+   * Demo stand-in for the gateway. A simulated machine has no secrets in the machines file, so
+   * the gateway that answers it from this simulator adds no key; the simulator plays that part: a request with neither a JWT nor a key is treated as carrying the "Monitor"
    * group's key (as a gateway with a configured apiKey would send). The control "Revoke the
    * console's API key" turns this off to show the needs-login path. Off by default (tests).
    */

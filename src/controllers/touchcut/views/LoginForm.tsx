@@ -4,7 +4,7 @@ import { describeError } from '../../../fleet/errors';
 import { useSnapshot, useStoreSelect } from '../../../fleet/react';
 import { Button, Field, Notice } from '../../../ui';
 import type { TouchcutSession } from '../session';
-import { defaultUsers } from '../sim/simulator';
+import { defaultUsers } from '../sim-users';
 
 /**
  * TouchCut user login (`POST rest/v1/auth`). The JWT it returns stays in the session's memory;

@@ -1,0 +1,21 @@
+import type { FamilyDeclaration } from '../../fleet/contract';
+import { duetAccess, duetAccessNeedsBody } from './access';
+import { duetHeldSession } from './gateway';
+
+/**
+ * Node-safe declaration of the Duet (DSF) family: access rules and gateway hints. No React,
+ * views, CSS or simulator here — the gateway and the browser import it.
+ */
+export const duetDeclaration: FamilyDeclaration = {
+  kind: 'duet',
+  label: 'Duet (DSF)',
+  access: duetAccess,
+  accessNeedsBody: duetAccessNeedsBody,
+  gateway: {
+    /**
+     * The gateway holds the DSF session (`gateway.ts`): it connects with the machine's password
+     * (or one a user typed into the login form) and keeps the key; browsers never get it.
+     */
+    session: duetHeldSession,
+  },
+};

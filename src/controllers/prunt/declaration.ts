@@ -1,0 +1,16 @@
+import type { FamilyDeclaration } from '../../fleet/contract';
+import { pruntAccess } from './access';
+
+/**
+ * Node-safe declaration of the Prunt family (no React, no views, no CSS, no simulator): the
+ * gateway and the browser import it.
+ */
+export const pruntDeclaration: FamilyDeclaration = {
+  kind: 'prunt',
+  label: 'Prunt',
+  access: pruntAccess,
+  gateway: {
+    // Pictures in the schema's help texts (`<image src="extras/images/stepper_1.png">`).
+    imageAnswer: (path) => /^\/extras\/images\/[^/]+\.(png|jpe?g|gif|webp)$/i.test(path),
+  },
+};

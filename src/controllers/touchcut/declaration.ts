@@ -1,0 +1,40 @@
+import type { FamilyDeclaration, GatewayHints } from '../../fleet/contract';
+import { takesApiKey, touchcutAccess } from './access';
+
+/**
+ * Node-safe declaration of the Kinetic TouchCut family (no React, no views, no CSS, no simulator:
+ * the gateway and the browser import it).
+ *
+ * Gateway notes for the lead:
+ * - TouchCut serves HTTPS with its own self-signed certificate: accept it for TouchCut machines
+ *   only (`rejectUnauthorized: false` on this machine's agent), never globally.
+ * - The machine's `url` is the host; the client's paths already start with `/rest/v1/`.
+ */
+export const touchcutGateway: GatewayHints = {
+  /**
+   * Adds `X-TouchCut-API-Key` from the machine's apiKey to GET requests of the documented reads
+   * that take it (status, stats, monitor, programs, unloader, screenshot: `takesApiKey`, the same
+   * path form the access rule uses), and to nothing else: no other method, no undocumented path, not
+   * machine-info or auth (they take no key). Not when the browser sent `Authorization: Bearer` (a
+   * TouchCut user login: the manual says the JWT takes precedence, and a user's own privileges are
+   * what they logged in for). The key goes in a header only, never the query (queries end up in
+   * logs and error echoes). A key the browser tried to send itself is always dropped: the browser
+   * never holds one.
+   */
+  injectSecrets(req, secrets) {
+    for (const k of Object.keys(req.headers))
+      if (k.toLowerCase() === 'x-touchcut-api-key') delete req.headers[k];
+    const bearer = Object.entries(req.headers).some(
+      ([k, v]) => k.toLowerCase() === 'authorization' && /^bearer\s+\S/i.test(v),
+    );
+    if (secrets.apiKey && !bearer && takesApiKey(req.method, req.path))
+      req.headers['X-TouchCut-API-Key'] = secrets.apiKey;
+  },
+};
+
+export const touchcutDeclaration: FamilyDeclaration = {
+  kind: 'touchcut',
+  label: 'Kinetic TouchCut',
+  access: touchcutAccess,
+  gateway: touchcutGateway,
+};

@@ -1,0 +1,17 @@
+import type { FamilyDeclaration } from '../../fleet/contract';
+import { xtoolAccess } from './access';
+
+/**
+ * The Node-safe declaration of the xTool D-series family: access rules, gateway hints. No React,
+ * views, CSS or simulator here: the gateway and the browser import this file.
+ */
+export const xtoolDeclaration: FamilyDeclaration = {
+  kind: 'xtool',
+  label: 'xTool D-series',
+  access: xtoolAccess,
+  gateway: {
+    // The status WebSocket is on :8081 of the same host (document, "TCP Ports"); the client
+    // opens `/machines/<id>/`, i.e. the root path of the device's :8081.
+    defaultWsPort: 8081,
+  },
+};
