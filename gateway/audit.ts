@@ -18,8 +18,9 @@ import { loggerFromEnv, type Logger } from './log';
 
 /**
  * The audit log: one JSON object per line in `<data folder>/audit.jsonl`. Appended by the
- * gateway (commands it forwarded, logins, refusals), by the browser for commands answered by
- * in-page simulators (`source: "client"`), and by `npm run user` (role changes).
+ * gateway (commands it forwarded to hardware or to its own simulators, logins, refusals) and by
+ * `npm run user` (role changes). `source: "client"` only appears in logs written before the
+ * demo fleet moved into the server, when the page audited its own simulators.
  */
 
 export type AuditType =
