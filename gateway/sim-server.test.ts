@@ -1,3 +1,4 @@
+import http from 'node:http';
 import { afterEach, describe, expect, it } from 'vitest';
 import { startSimFleet, startSimServer } from './sim-server';
 import { openWs, startGateway, tempDir, testFamily, consoleFetch } from './test-util';
@@ -81,5 +82,47 @@ describe('simulator server', () => {
     w.ws.send('hi');
     expect(await w.next()).toBe('sim-echo:hi');
     await w.close();
+  });
+
+  it('counts upstream requests, TCP connections and sockets on both ports, not /__sim', async () => {
+    const s = await startSimServer({ family: testFamily('xtool', 8081), id: 'sim-1', name: 'Sim' });
+    cleanups.push(s.close);
+    const agent = new http.Agent({ keepAlive: true, maxSockets: 1 });
+    cleanups.push(() => agent.destroy());
+    const get = (url: string, a: http.Agent | false): Promise<number> =>
+      new Promise((resolve, reject) => {
+        http
+          .get(url, { agent: a, headers: { 'X-Shopdeck': '1' } }, (res) => {
+            res.resume();
+            res.on('end', () => resolve(res.statusCode ?? 0));
+          })
+          .on('error', reject);
+      });
+    expect(s.stats()).toEqual({ requests: 0, connections: 0, wsOpen: 0, wsOpened: 0, wsMaxOpen: 0 });
+
+    // Three requests over one kept-alive connection, one on a connection of its own.
+    for (let i = 0; i < 3; i++) expect(await get(`${s.url}/status`, agent)).toBe(200);
+    expect(await get(`${s.url}/status`, false)).toBe(200);
+    expect(s.stats()).toMatchObject({ requests: 4, connections: 2 });
+
+    // The simulator's own endpoints are not controller traffic (their connection still is TCP).
+    expect(await get(`${s.url}/__sim/controls`, agent)).toBe(200);
+    expect(s.stats()).toMatchObject({ requests: 4, connections: 2 });
+
+    // The separate WebSocket port: a plain request and a socket both count.
+    expect(s.wsUrl).not.toBeNull();
+    const wsHttp = (s.wsUrl ?? '').replace(/^ws/, 'http');
+    expect(await get(`${wsHttp}/`, false)).toBe(426);
+    const a = await openWs(`${s.wsUrl ?? ''}/`);
+    const b = await openWs(`${s.url.replace('http', 'ws')}/live`);
+    expect(s.stats()).toEqual({ requests: 5, connections: 5, wsOpen: 2, wsOpened: 2, wsMaxOpen: 2 });
+    await a.close();
+    await expect.poll(() => s.stats().wsOpen).toBe(1);
+
+    s.resetStats();
+    expect(s.stats()).toEqual({ requests: 0, connections: 0, wsOpen: 1, wsOpened: 0, wsMaxOpen: 1 });
+    await b.close();
+    await expect.poll(() => s.stats().wsOpen).toBe(0);
+    expect(s.stats()).toMatchObject({ wsOpened: 0, wsMaxOpen: 1 });
   });
 });

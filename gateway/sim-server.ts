@@ -39,7 +39,27 @@ export interface SimServer {
   /** Set when the family's socket lives on its own port. */
   wsUrl: string | null;
   sim: FaultySimulator;
+  /**
+   * Upstream traffic counters since start or the last `resetStats()`, over the HTTP port and the
+   * separate WebSocket port (benchmarks: how much the gateway asks of a controller).
+   */
+  stats(): SimServerStats;
+  /** Zeroes the counters; `wsMaxOpen` restarts from the sockets open now. */
+  resetStats(): void;
   close(): Promise<void>;
+}
+
+export interface SimServerStats {
+  /** HTTP requests answered (not `/__sim/*`, not WebSocket upgrades). */
+  requests: number;
+  /** TCP connections accepted (keep-alive reuse counts once). */
+  connections: number;
+  /** WebSockets open now. */
+  wsOpen: number;
+  /** WebSockets accepted. */
+  wsOpened: number;
+  /** Most WebSockets open at once. */
+  wsMaxOpen: number;
 }
 
 /** Turns a Node request into a fetch Request for a simulator. */
@@ -111,6 +131,7 @@ export async function startSimServer(o: SimServerOptions): Promise<SimServer> {
     o.simulator ?? o.family.createSimulator({ id: o.id, name: o.name, tickMs: o.tickMs }),
   );
   const sockets = new Set<WebSocket>();
+  const counts = { requests: 0, connections: 0, wsOpened: 0, wsMaxOpen: 0 };
   const wss = new WebSocketServer({ noServer: true, perMessageDeflate: false });
 
   async function handle(req: IncomingMessage, res: ServerResponse): Promise<void> {
@@ -176,18 +197,29 @@ export async function startSimServer(o: SimServerOptions): Promise<SimServer> {
     const path = req.url ?? '/';
     wss.handleUpgrade(req, socket, head, (client) => {
       sockets.add(client);
+      counts.wsOpened++;
+      counts.wsMaxOpen = Math.max(counts.wsMaxOpen, sockets.size);
       bridgeSimSocket(client, sim, path, () => sockets.delete(client));
+    });
+  };
+
+  const count = (s: http.Server): void => {
+    s.on('connection', () => counts.connections++);
+    s.on('request', (req: IncomingMessage) => {
+      if (!(req.url ?? '/').startsWith('/__sim/')) counts.requests++;
     });
   };
 
   const server = http.createServer(onRequest);
   server.on('upgrade', onUpgrade);
+  count(server);
   const port = await listen(server, host, o.port ?? 0);
   let wsServer: http.Server | null = null;
   let wsUrl: string | null = null;
   if (o.family.gateway?.defaultWsPort) {
     wsServer = http.createServer((_req, res) => sendJson(res, 426, { error: 'WebSocket only' }));
     wsServer.on('upgrade', onUpgrade);
+    count(wsServer);
     const wsPort = await listen(wsServer, host, o.wsPort ?? 0);
     wsUrl = `ws://${host}:${wsPort}`;
   }
@@ -205,6 +237,13 @@ export async function startSimServer(o: SimServerOptions): Promise<SimServer> {
     url: `http://${host}:${port}`,
     wsUrl,
     sim,
+    stats: () => ({ ...counts, wsOpen: sockets.size }),
+    resetStats() {
+      counts.requests = 0;
+      counts.connections = 0;
+      counts.wsOpened = 0;
+      counts.wsMaxOpen = sockets.size;
+    },
     async close() {
       for (const s of sockets) s.terminate();
       sockets.clear();

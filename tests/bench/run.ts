@@ -55,7 +55,28 @@ const meta = {
   memGiB: Math.round(totalmem() / 2 ** 30),
 };
 writeFileSync(join(outDir, 'report.json'), JSON.stringify({ meta, rows }, null, 2));
-const keys = [...new Set(rows.flatMap((r) => Object.keys(r)))].filter((k) => k !== 'bench');
+/** A table cell: nothing for a missing value, "—" for null, no line breaks or pipes. */
+const cell = (v: unknown): string =>
+  v === undefined
+    ? ''
+    : v === null
+      ? '—'
+      : String(v)
+          .replace(/\s*\n\s*/g, ' ')
+          .replace(/\|/g, '\\|');
+// One table per benchmark, with that benchmark's own columns (in the order its rows give them).
+const tables = [...new Set(rows.map((r) => r.bench))].flatMap((bench) => {
+  const own = rows.filter((r) => r.bench === bench);
+  const keys = [...new Set(own.flatMap((r) => Object.keys(r)))].filter((k) => k !== 'bench');
+  return [
+    `## ${bench}`,
+    '',
+    `| ${keys.join(' | ')} |`,
+    `|${keys.map(() => '---').join('|')}|`,
+    ...own.map((r) => `| ${keys.map((k) => cell(r[k])).join(' | ')} |`),
+    '',
+  ];
+});
 const md = [
   `# Shopdeck benchmark report`,
   '',
@@ -63,12 +84,7 @@ const md = [
   '',
   'Medians of one run on a shared, noisy machine: read ratios within this report.',
   '',
-  `| bench | ${keys.join(' | ')} |`,
-  `|---|${keys.map(() => '---').join('|')}|`,
-  ...rows.map(
-    (r) => `| ${r.bench} | ${keys.map((k) => (r[k] === undefined ? '' : String(r[k]))).join(' | ')} |`,
-  ),
-  '',
+  ...tables,
 ].join('\n');
 writeFileSync(join(outDir, 'report.md'), md);
 process.stdout.write(md);
