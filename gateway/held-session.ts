@@ -1,10 +1,16 @@
 import { createHash, timingSafeEqual } from 'node:crypto';
 import http, { type IncomingMessage, type ServerResponse } from 'node:http';
-import type { WebSocket } from 'ws';
-import type { HeldIntercept, HeldSessionHooks, UpstreamAnswer, UpstreamRequest } from '../src/fleet/contract';
+import type { EventEmitter } from 'node:events';
+import type {
+  HeldCredentials,
+  HeldIntercept,
+  HeldSessionHooks,
+  UpstreamAnswer,
+  UpstreamRequest,
+} from '../src/fleet/contract';
 import { safeAnswerHeaders } from './answer-headers';
 import type { GatewayContext } from './context';
-import { sendJson } from './http-util';
+import { BodyTooLarge, readBody, sendJson } from './http-util';
 import { redact, type MachineEntry } from './machines';
 import { redactText } from './redact';
 import { connectPinned } from './tls-pin';
@@ -16,23 +22,31 @@ import { unreachableReason } from './log';
  * so the key lives here and never reaches a browser.
  *
  * - One session per machine, shared by every browser. It is opened on first use with the
- *   machine's configured password, else the one a user typed into the console's login form (kept
- *   in memory only, redacted like configured secrets), else none. Concurrent first uses share
- *   one open.
- * - The family's `intercept` names the browser requests answered here: "open" (connect) gets the
- *   session's connect answer without the key (a wrong typed password gets the controller's
- *   refusal as it is), "close" (disconnect) gets 204 and the shared session stays.
+ *   machine's configured credentials (`configured`, default its password), else what a user typed
+ *   into the console's login form, else none. Concurrent first uses share one open.
+ * - The family's `intercept` names the browser requests answered here: "open" (connect, a user
+ *   login: credentials from the query or, read here, the body) gets the session's answer without
+ *   the key (wrong credentials get the controller's refusal as it is); "close" (disconnect) gets
+ *   204 and the shared session stays, or ends with it (`end`: a logout); "exchange" (TouchCut's
+ *   password change) is sent by the gateway with its key, and a new key in the answer is kept and
+ *   taken out of it; "answer" is answered as it is.
  * - Every forwarded request: whatever key the browser sent is dropped, the gateway's is added
- *   (`apply`, `applyWs`). When the controller says the key expired (`isExpired`), the key is
- *   renewed; a read (GET/HEAD that is not a command) is then sent once more, a command never.
+ *   (`apply`, `applyWs`). When the controller says the key expired (`isExpired`): with `expiry`
+ *   'reopen' (default) the key is renewed with the configured or typed password (kept in memory
+ *   only, redacted like configured secrets), and a read (GET/HEAD that is not a command) is sent
+ *   once more, a command never; with 'forget' the key is dropped, the answer goes to the browser
+ *   (which asks for a login again) and nothing typed is kept.
  * - Kept alive (`keepAlive`) while a browser used the machine recently and no upstream socket
  *   holds it open; unused longer, it is ended and the next use opens a new one first.
- * - Keys and typed passwords are added to the machine's redaction (`ctx.learnSecret`), so that
- *   an answer, header, frame, error or audit entry that would carry them says `[redacted]`.
+ * - Keys and kept typed passwords are added to the machine's redaction (`ctx.learnSecret`), so
+ *   that an answer, header, frame, error or audit entry that would carry them says `[redacted]`.
+ *   A body read here (a login's password) is never logged nor written to the audit log.
  * - `endHeldSessions` (gateway close) ends them all.
  */
 
 const MAX_ANSWER = 1024 * 1024;
+/** Bodies read here (a login's credentials, a password change). */
+const MAX_INTERCEPT_BODY = 64 * 1024;
 /** Keys replaced by a renewal stay redacted for a while (late answers): this many of them. */
 const RETIRED_KEPT = 4;
 
@@ -52,6 +66,11 @@ export interface HeldHttp {
     status: number,
     resend: (pathAndQuery?: string) => void,
     dropped?: { request: http.ClientRequest; response: IncomingMessage },
+    /**
+     * Where a refusal goes when no new key could be had: the browser's response by default; a
+     * shared read's capture (upstream-http.ts), whose answer every waiting browser gets.
+     */
+    answerTo?: ServerResponse,
   ): boolean;
 }
 
@@ -62,7 +81,7 @@ export interface HeldSocket {
   /** `path?query` for a simulator's socket, with `apply` done. */
   target(path: string, rawQuery: string): string;
   /** The socket that uses the key (browser side for a simulator): the session stays while it is open. */
-  track(ws: WebSocket): void;
+  track(ws: EventEmitter): void;
 }
 
 export interface HeldRefusal {
@@ -73,6 +92,19 @@ export interface HeldRefusal {
 function sameSecret(a: string, b: string): boolean {
   const h = (s: string): Buffer => createHash('sha256').update(s, 'utf8').digest();
   return timingSafeEqual(h(a), h(b));
+}
+
+function sameCredentials(a: HeldCredentials, b: HeldCredentials): boolean {
+  return sameSecret(a.password, b.password) && (a.username ?? '') === (b.username ?? '');
+}
+
+/** A forwarded request as the held session sees it (`holdHttp`). */
+interface HeldRequest {
+  method: string;
+  path: string;
+  query: URLSearchParams;
+  headers: Record<string, string>;
+  isCommand: boolean;
 }
 
 function flatHeaders(h: http.IncomingHttpHeaders): Record<string, string> {
@@ -93,13 +125,18 @@ export async function upstreamRequest(
   method: string,
   pathAndQuery: string,
   headers: Record<string, string> = {},
-  opts: { detached?: boolean } = {},
+  opts: { detached?: boolean; body?: string | Buffer } = {},
 ): Promise<UpstreamAnswer> {
+  const body = method === 'GET' || method === 'HEAD' ? undefined : opts.body;
   if (m.simulated) {
     const sim = ctx.simulatorFor(m);
     if (!sim) throw new Error(`no simulator for ${m.kind}`);
     const r = await sim.fetch(
-      new Request(`http://${m.id}.sim${pathAndQuery}`, { method, headers }),
+      new Request(`http://${m.id}.sim${pathAndQuery}`, {
+        method,
+        headers,
+        body: body === undefined ? undefined : typeof body === 'string' ? body : new Uint8Array(body),
+      }),
       pathAndQuery,
     );
     const h: Record<string, string> = {};
@@ -134,7 +171,11 @@ export async function upstreamRequest(
       port: target.port || (isHttps ? 443 : 80),
       method,
       path: target.pathname.replace(/\/+$/, '') + pathAndQuery,
-      headers: { ...headers, host: target.host },
+      headers: {
+        ...headers,
+        host: target.host,
+        ...(body !== undefined ? { 'content-length': String(Buffer.byteLength(body)) } : {}),
+      },
       ...(socket ? { createConnection: () => socket } : { agent: opts.detached ? false : ctx.httpAgent }),
     });
     if (!opts.detached) ctx.pending.add(req);
@@ -175,7 +216,7 @@ export async function upstreamRequest(
         reject(e);
       });
     });
-    req.end();
+    req.end(body);
   });
 }
 
@@ -185,8 +226,11 @@ export class HeldSession {
   private open = false;
   /** The controller's connect answer without the key: what a browser's "open" gets. */
   private answer: UpstreamAnswer | null = null;
-  /** A password a user typed into the login form (memory only; never logged, never echoed). */
-  private typed: string | undefined;
+  /**
+   * What a user typed into the login form (memory only; never logged, never echoed), kept to
+   * reopen the session (`expiry` 'reopen' only).
+   */
+  private typed: HeldCredentials | undefined;
   private opening: Promise<Ensured> | null = null;
   /** Bumped whenever a session is installed or ended (an older open in flight is then discarded). */
   private generation = 0;
@@ -205,8 +249,20 @@ export class HeldSession {
     private readonly hooks: HeldSessionHooks,
   ) {}
 
-  private readonly upstream: UpstreamRequest = (method, pathAndQuery, headers) =>
-    upstreamRequest(this.ctx, this.m, method, pathAndQuery, headers);
+  private readonly upstream: UpstreamRequest = (method, pathAndQuery, headers, body) =>
+    upstreamRequest(this.ctx, this.m, method, pathAndQuery, headers, { body });
+
+  /** The key is dropped when it expires, never renewed (a user login: TouchCut). */
+  private get forgets(): boolean {
+    return this.hooks.expiry === 'forget';
+  }
+
+  /** The machines file's credentials for the session (then a typed login is not used). */
+  private configured(): HeldCredentials | undefined {
+    if (this.hooks.configured) return this.hooks.configured(this.m.secrets);
+    const password = this.m.secrets.password;
+    return password === undefined ? undefined : { password };
+  }
 
   // ---------------------------------------------------------------- the session
 
@@ -216,7 +272,7 @@ export class HeldSession {
     if (this.open) return Promise.resolve({ ok: true, key: this.key });
     if (!this.opening) {
       const gen = this.generation;
-      const p = this.openWith(this.m.secrets.password ?? this.typed)
+      const p = this.openWith(this.configured() ?? this.typed)
         .then((r): Ensured | Promise<Ensured> => {
           if (!r.ok) return r;
           if (gen !== this.generation || this.ended) {
@@ -251,30 +307,67 @@ export class HeldSession {
     }
   }
 
+  /**
+   * The controller said `usedKey` expired: renewed ('reopen'), or dropped ('forget': the next use
+   * finds the session without a key, as the configured credentials open it).
+   */
+  private expired(usedKey: string | null): void {
+    if (!this.forgets) {
+      void this.renew(usedKey);
+      return;
+    }
+    if (usedKey === null || !this.open || this.key !== usedKey) return;
+    this.open = false;
+    this.generation++;
+    this.key = null;
+    this.answer = null;
+    this.retire(usedKey);
+  }
+
+  /** A logout for every viewer: the key is dropped (and closed), typed credentials forgotten. */
+  private logout(): void {
+    this.typed = undefined;
+    this.stopTimer();
+    const key = this.open ? this.key : null;
+    this.open = false;
+    this.generation++;
+    this.key = null;
+    this.answer = null;
+    if (key !== null) {
+      this.retire(key);
+      void this.closeKey(key);
+    }
+  }
+
   private closing(): Failure {
     return { ok: false, status: 503, error: 'the gateway is shutting down' };
   }
 
-  private async openWith(password: string | undefined): Promise<Opened> {
+  private async openWith(credentials: HeldCredentials | undefined): Promise<Opened> {
     try {
-      const r = await this.hooks.open(this.upstream, password);
+      const r = await this.hooks.open(this.upstream, credentials);
       return r.ok ? r : { ok: false, status: r.answer.status, answer: r.answer };
     } catch (e) {
-      const err = e instanceof Error ? e : new Error(String(e));
-      const forms = this.ctx.secretsOf.get(this.m.id) ?? [];
-      const reason = this.ctx.state.closed ? null : unreachableReason(err, false);
-      if (reason) this.ctx.reachability.down(this.m.id, reason, redact(err.message, forms));
-      else
-        this.ctx.log.error(`${this.m.id}: opening the controller session: ${redact(err.message, forms)}`, {
-          machine: this.m.id,
-        });
-      const timedOut = /did not answer within/.test(err.message);
-      return {
-        ok: false,
-        status: timedOut ? 504 : 502,
-        error: timedOut ? `${this.m.name} did not answer in time` : `cannot reach ${this.m.name}`,
-      };
+      return this.unreachable(e, 'opening the controller session');
     }
+  }
+
+  /** A request of the gateway's own failed: logged (redacted), and the failure for the browser. */
+  private unreachable(e: unknown, doing: string): Failure {
+    const err = e instanceof Error ? e : new Error(String(e));
+    const forms = this.ctx.secretsOf.get(this.m.id) ?? [];
+    const reason = this.ctx.state.closed ? null : unreachableReason(err, false);
+    if (reason) this.ctx.reachability.down(this.m.id, reason, redact(err.message, forms));
+    else
+      this.ctx.log.error(`${this.m.id}: ${doing}: ${redact(err.message, forms)}`, {
+        machine: this.m.id,
+      });
+    const timedOut = /did not answer within/.test(err.message);
+    return {
+      ok: false,
+      status: timedOut ? 504 : 502,
+      error: timedOut ? `${this.m.name} did not answer in time` : `cannot reach ${this.m.name}`,
+    };
   }
 
   private install(key: string | null, answer: UpstreamAnswer): void {
@@ -299,8 +392,8 @@ export class HeldSession {
 
   private async closeKey(key: string, detached = false): Promise<void> {
     if (!this.hooks.close) return;
-    const upstream: UpstreamRequest = (method, pathAndQuery, headers) =>
-      upstreamRequest(this.ctx, this.m, method, pathAndQuery, headers, { detached });
+    const upstream: UpstreamRequest = (method, pathAndQuery, headers, body) =>
+      upstreamRequest(this.ctx, this.m, method, pathAndQuery, headers, { detached, body });
     try {
       await this.hooks.close(upstream, key);
     } catch {
@@ -373,7 +466,9 @@ export class HeldSession {
     this.upstream('GET', ka.path, headers)
       .then(
         (r) => {
-          if (this.hooks.isExpired(r.status)) this.invalidate(key);
+          if (!this.hooks.isExpired(r.status)) return;
+          if (this.forgets) this.expired(key);
+          else this.invalidate(key);
         },
         () => undefined,
       )
@@ -384,12 +479,15 @@ export class HeldSession {
 
   // ---------------------------------------------------------------- browsers
 
-  /** A browser's "open": the session's answer (a typed password is checked with the controller first). */
-  private async openForBrowser(typed: string | undefined): Promise<Ensured> {
+  /**
+   * A browser's "open": the session's answer (typed credentials are checked with the controller
+   * first; with `expiry` 'forget' every typed login is, and replaces the session's key).
+   */
+  private async openForBrowser(typed: HeldCredentials | undefined): Promise<Ensured> {
     const verify =
-      this.m.secrets.password === undefined &&
+      this.configured() === undefined &&
       typed !== undefined &&
-      !(this.open && this.typed !== undefined && sameSecret(typed, this.typed));
+      !(this.open && this.typed !== undefined && sameCredentials(typed, this.typed));
     if (!verify) return this.ensure();
     const r = await this.openWith(typed);
     if (!r.ok) return r;
@@ -397,39 +495,102 @@ export class HeldSession {
       if (r.key !== null) void this.closeKey(r.key, true);
       return this.closing();
     }
-    this.typed = typed;
-    this.ctx.learnSecret(this.m.id, typed);
+    if (!this.forgets) {
+      this.typed = typed;
+      this.ctx.learnSecret(this.m.id, typed.password);
+    }
     this.install(r.key, r.answer);
     return { ok: true, key: r.key };
   }
 
-  async intercepted(i: HeldIntercept, res: ServerResponse): Promise<void> {
+  async intercepted(
+    i: HeldIntercept,
+    res: ServerResponse,
+    r: HeldRequest & { body: Buffer; contentType: string },
+  ): Promise<void> {
     this.touch();
-    if (i.kind === 'close') {
-      res.writeHead(204, { 'Cache-Control': 'no-store' });
-      res.end();
-      return;
+    switch (i.kind) {
+      case 'close':
+        if (i.end) this.logout();
+        res.writeHead(204, { 'Cache-Control': 'no-store' });
+        res.end();
+        return;
+      case 'answer':
+        this.write(res, i.answer);
+        return;
+      case 'exchange':
+        await this.exchange(r, res);
+        return;
+      case 'open':
+        break;
     }
-    const r = await this.openForBrowser(i.password);
-    if (r.ok)
+    let typed = i.credentials;
+    if (i.fromBody) {
+      try {
+        typed = i.fromBody(r.body.toString('utf8'), r.contentType);
+      } catch {
+        sendJson(res, 400, { error: 'the login request cannot be read', gateway: true });
+        return;
+      }
+    }
+    const o = await this.openForBrowser(typed);
+    if (o.ok)
       this.write(
         res,
         this.answer ?? { status: 200, headers: { 'content-type': 'application/json' }, body: '{}' },
       );
-    else this.refuse(res, r);
+    else this.refuse(res, o);
+  }
+
+  /**
+   * An "exchange": sent by the gateway with its key, never retried; a new key in the answer is
+   * kept (if the session is still the one that sent it) and the answer goes out without it.
+   */
+  private async exchange(r: HeldRequest & { body: Buffer }, res: ServerResponse): Promise<void> {
+    const e = await this.ensure();
+    if (!e.ok) {
+      this.refuse(res, e);
+      return;
+    }
+    const headers = { ...r.headers };
+    for (const k of Object.keys(headers))
+      if (k.toLowerCase() === 'content-length' || k.toLowerCase() === 'transfer-encoding') delete headers[k];
+    const query = new URLSearchParams(r.query);
+    this.hooks.apply({ headers, query }, e.key);
+    this.ctx.opts.families[this.m.kind]?.gateway?.injectSecrets?.(
+      { method: r.method, path: r.path, headers, query },
+      this.m.secrets,
+    );
+    const qs = query.toString();
+    let a: UpstreamAnswer;
+    this.inFlight++;
+    this.lastUpstreamAt = Date.now();
+    try {
+      a = await upstreamRequest(this.ctx, this.m, r.method, r.path + (qs ? `?${qs}` : ''), headers, {
+        body: r.body,
+      });
+    } catch (err) {
+      this.refuse(res, this.unreachable(err, `${r.method} ${r.path}`));
+      return;
+    } finally {
+      this.inFlight--;
+      this.touch();
+    }
+    if (this.hooks.isExpired(a.status, { method: r.method, path: r.path })) this.expired(e.key);
+    const x = this.hooks.exchanged?.(a, this.open ? this.answer : null) ?? { key: null, answer: a };
+    if (x.key !== null) {
+      if (this.open && this.key === e.key && !this.ended) this.install(x.key, x.answer);
+      else {
+        // The session moved on meanwhile (a logout, another login): the new key is not used.
+        this.ctx.learnSecret(this.m.id, x.key);
+        this.retire(x.key);
+      }
+    }
+    this.write(res, x.answer);
   }
 
   /** A forwarded request: the key applied, or why there is none. */
-  async use(
-    r: {
-      method: string;
-      path: string;
-      query: URLSearchParams;
-      headers: Record<string, string>;
-      isCommand: boolean;
-    },
-    res: ServerResponse,
-  ): Promise<HeldHttp | Failure> {
+  async use(r: HeldRequest, res: ServerResponse): Promise<HeldHttp | Failure> {
     this.touch();
     this.inFlight++;
     res.once('close', () => {
@@ -444,11 +605,11 @@ export class HeldSession {
     const read = (r.method === 'GET' || r.method === 'HEAD') && !r.isCommand;
     let retried = false;
     return {
-      retry: (status, resend, dropped) => {
-        if (!this.hooks.isExpired(status)) return false;
-        if (!read || retried) {
-          // Never sent twice: the next request finds a new key.
-          void this.renew(used);
+      retry: (status, resend, dropped, answerTo) => {
+        if (!this.hooks.isExpired(status, { method: r.method, path: r.path })) return false;
+        if (this.forgets || !read || retried) {
+          // Never sent twice: the next request finds a new key (or, 'forget', none).
+          this.expired(used);
           return false;
         }
         retried = true;
@@ -460,7 +621,8 @@ export class HeldSession {
         }
         void this.renew(used).then((n) => {
           if (!n.ok) {
-            if (!res.headersSent) this.refuse(res, n);
+            const to = answerTo ?? res;
+            if (!to.headersSent) this.refuse(to, n);
             return;
           }
           const q = new URLSearchParams(r.query);
@@ -501,7 +663,7 @@ export class HeldSession {
         ws.once('close', end);
         ws.once('error', end);
         ws.once('unexpected-response', (_req: http.ClientRequest, resp: IncomingMessage) => {
-          if (this.hooks.isExpired(resp.statusCode ?? 0)) void this.renew(key);
+          if (this.hooks.isExpired(resp.statusCode ?? 0)) this.expired(key);
         });
       },
     };
@@ -542,21 +704,16 @@ function sessionOf(ctx: GatewayContext, m: MachineEntry, hooks: HeldSessionHooks
 
 /**
  * For `proxy-http.ts`, after authorization and before `injectSecrets`: null when the family holds
- * no session; 'answered' when the request was answered here (connect, disconnect, no session);
- * else the key is in `headers`/`query` and the proxy calls `retry` with the controller's status.
+ * no session; 'answered' when the request was answered here (connect, login, logout, disconnect,
+ * an exchange, no session); else the key is in `headers`/`query` and the proxy calls `retry` with
+ * the controller's status. `body`: the request body when the proxy already read it.
  */
 export async function holdHttp(
   ctx: GatewayContext,
   m: MachineEntry,
   req: IncomingMessage,
   res: ServerResponse,
-  r: {
-    method: string;
-    path: string;
-    query: URLSearchParams;
-    headers: Record<string, string>;
-    isCommand: boolean;
-  },
+  r: HeldRequest & { body?: Buffer | null },
   done: (r: { status?: number; error?: string }) => void,
 ): Promise<'answered' | HeldHttp | null> {
   const hooks = hooksOf(ctx, m);
@@ -564,8 +721,27 @@ export async function holdHttp(
   const s = sessionOf(ctx, m, hooks);
   const i = hooks.intercept({ method: r.method, path: r.path, query: r.query });
   if (i) {
-    req.resume();
-    await s.intercepted(i, res);
+    const wantsBody = (i.kind === 'open' && i.fromBody !== undefined) || i.kind === 'exchange';
+    let body = r.body ?? null;
+    if (wantsBody && body === null && r.method !== 'GET' && r.method !== 'HEAD') {
+      try {
+        body = await readBody(req, MAX_INTERCEPT_BODY);
+      } catch (e) {
+        if (e instanceof BodyTooLarge) {
+          sendJson(res, 413, {
+            error: `request body larger than ${MAX_INTERCEPT_BODY} bytes`,
+            gateway: true,
+          });
+          done({ status: 413 });
+        } else {
+          res.destroy();
+          done({ error: 'the request was cut' });
+        }
+        return 'answered';
+      }
+    } else req.resume();
+    const contentType = req.headers['content-type'] ?? '';
+    await s.intercepted(i, res, { ...r, body: body ?? Buffer.alloc(0), contentType });
     done({ status: res.statusCode });
     return 'answered';
   }

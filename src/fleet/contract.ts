@@ -63,6 +63,124 @@ export interface GatewayHints {
    * key, renews and keeps it alive, and adds it on the way out; the browser never sees the key.
    */
   session?: HeldSessionHooks;
+  /**
+   * How the gateway shares this controller among every viewer (gateway/upstream-http.ts,
+   * gateway/streams.ts, gateway/watch.ts): one upstream per machine whatever the number of tabs.
+   */
+  sharing?: SharingHints;
+}
+
+/**
+ * A family's declaration of how its controller is shared (`<kind>/sharing.ts`, Node-safe, pure).
+ * The mechanism is the gateway's, once; the family only says what is safe for its controller.
+ */
+export interface SharingHints {
+  /**
+   * Identical reads (GET, same path and query, not a command) that may be answered from one
+   * upstream request: the window in ms within which an answer is given again (the family's poll
+   * period for that path), or null: never shared. Commands are never shared, cached or retried.
+   */
+  shareRead?(path: string, query: URLSearchParams): number | null;
+  /** Keep TCP connections to the controller open between requests (its server allows it). */
+  keepAlive: boolean;
+  /**
+   * At most this many reads upstream at once for one machine; more wait in a queue (bounded).
+   * Commands never wait behind reads: they go at once, in the order they arrived.
+   */
+  maxConcurrentReads: number;
+  /** The controller's WebSockets that are shared: one upstream socket per machine and path. */
+  streams?: SharedStreamDecl[];
+  /** The slow watch the gateway keeps on the machine with no viewer (state and alarms). */
+  watch?: WatchDecl;
+}
+
+/** How a frame of a shared stream travels to browsers. */
+export type FrameClass =
+  /**
+   * A state frame: a newer one with the same key makes an undelivered older one pointless. A
+   * slow or throttled browser gets only the latest of each key; a browser that joins later is
+   * first given the latest one of each key whose `replay` is true.
+   */
+  | { kind: 'latest'; key: string; replay: boolean }
+  /**
+   * An event (a log line, an alarm): delivered in order, never dropped; a browser too slow for
+   * them is closed (1013) and reconnects. `replay`: kept (the last few) for browsers that join later.
+   */
+  | { kind: 'event'; replay?: boolean };
+
+interface StreamDeclBase {
+  /** The socket's path on the controller ("/websocket/everything", "/" for xTool's :8081). */
+  matches(path: string): boolean;
+  /** The upstream socket stays this long after the last viewer left (unless the watch needs it). */
+  graceMs: number;
+}
+
+/** A stream fanned out frame by frame (xTool :8081 frames, Prunt /websocket/everything). */
+export interface FanoutStreamDecl extends StreamDeclBase {
+  kind: 'fanout';
+  classify(frame: string): FrameClass;
+  /**
+   * A browser's frame. `reply`: answered by the gateway to that browser alone; `rateMs`: the
+   * browser wants `latest` frames at most this often (Prunt's divisor); null: dropped. Nothing a
+   * browser sends reaches the shared upstream socket as it is.
+   */
+  fromBrowser?(frame: string): { reply: string } | { rateMs: number } | null;
+  /** The frame sent upstream when the fastest `rateMs` any viewer wants changes (Prunt: the divisor). */
+  upstreamRate?(rateMs: number): string;
+  /** `rateMs` of a browser that asked for none. */
+  defaultRateMs?: number;
+}
+
+/** A JSON value (model streams). */
+export type JsonValue = null | boolean | number | string | JsonValue[] | { [key: string]: JsonValue };
+export type JsonRecord = { [key: string]: JsonValue };
+
+/**
+ * A stream whose first frame is a full model and whose later frames are patches, each asked for
+ * with an acknowledgement (Duet DSF `WS /machine`: full model, then `OK\n` → one patch; `PING\n`
+ * → `PONG\n`). The gateway keeps the merged model; every browser gets the full model first and
+ * patches after, each at its own pace (a slow browser gets one patch covering what it missed).
+ */
+export interface ModelStreamDecl extends StreamDeclBase {
+  kind: 'model';
+  /** The first frame: the full model, or why it is not one. */
+  full(frame: string): JsonRecord | Error;
+  /** A later frame applied to the model: the new model and the events it carried (Duet `messages`). */
+  apply(model: JsonRecord, frame: string): { model: JsonRecord; events: JsonValue[] } | Error;
+  /** A patch that takes `from` to `to` (with `events` carried), as one frame for a browser. */
+  diff(from: JsonRecord, to: JsonRecord, events: JsonValue[]): string;
+  /** A full model as the first frame for a browser. */
+  first(model: JsonRecord): string;
+  /** The frame that asks the controller for the next patch ("OK\n"). */
+  ack: string;
+  /** A browser's frame: its acknowledgement, a keep-alive with the answer to give, or null (dropped). */
+  fromBrowser(frame: string): { ack: true } | { reply: string } | null;
+  /** Keep-alive the gateway sends upstream when it has heard nothing for `everyMs` ("PING\n"). */
+  ping?: { frame: string; everyMs: number; isPong(frame: string): boolean };
+}
+
+export type SharedStreamDecl = FanoutStreamDecl | ModelStreamDecl;
+
+/** The summary of a machine the gateway's watch keeps (state and alarms, for audit and history). */
+export interface WatchSummary {
+  /** 'running' | 'paused' | 'idle' | 'alarm' | 'offline' | 'unknown' */
+  state: 'running' | 'paused' | 'idle' | 'alarm' | 'unknown';
+  /** The alarm in words when one is active. */
+  alarm: string | null;
+  /** The job's file or program name when one is known. */
+  job: string | null;
+}
+
+/**
+ * The slow watch the gateway keeps on a machine nobody looks at: one read every `everyMs`
+ * (`path`), or the shared stream kept open (`stream`: its path) and its frames read.
+ */
+export interface WatchDecl {
+  everyMs: number;
+  /** A read (GET `path`) whose answer `read` turns into a summary. */
+  poll?: { path: string; read(status: number, body: string): WatchSummary | Error };
+  /** A shared stream kept open while the watch runs; `read` turns its frames into summaries (null: no news). */
+  stream?: { path: string; read(frame: string): Partial<WatchSummary> | null };
 }
 
 /** An answer to a request the gateway made itself (held sessions). Header names are lower-case. */
@@ -77,17 +195,48 @@ export type UpstreamRequest = (
   method: string,
   pathAndQuery: string,
   headers?: Record<string, string>,
+  body?: string,
 ) => Promise<UpstreamAnswer>;
+
+/**
+ * What a held session is opened with: the machine's configured password, or what a user typed into
+ * the console's login form (a controller with user accounts, TouchCut, also takes a user name).
+ */
+export interface HeldCredentials {
+  password: string;
+  username?: string;
+}
 
 /** Requests the gateway answers itself from a held session. */
 export type HeldIntercept =
-  /** The browser's "connect": answered with the session's `answer`; `password` if the user typed one. */
-  | { kind: 'open'; password?: string }
-  /** The browser's "disconnect": answered locally, the shared session stays. */
-  | { kind: 'close' };
+  /**
+   * The browser's "connect" or login: answered with the session's `answer` (the session is opened
+   * first when there is none). `credentials`: what the user typed, when it is in the path or query;
+   * `fromBody`: it is in the request body, which the gateway reads (bounded) and hands over with its
+   * Content-Type. No credentials at all: the shared session's state as it is.
+   */
+  | {
+      kind: 'open';
+      credentials?: HeldCredentials;
+      fromBody?: (body: string, contentType: string) => HeldCredentials;
+    }
+  /**
+   * The browser's "disconnect" or logout, answered 204 locally. `end`: the shared session ends too,
+   * and typed credentials are forgotten (a user login every viewer shared is logged out); otherwise
+   * the shared session stays.
+   */
+  | { kind: 'close'; end?: boolean }
+  /**
+   * Sent to the controller by the gateway itself, with its key (and `injectSecrets`), never
+   * retried; the answer goes through `exchanged` (a request whose answer carries a new key:
+   * TouchCut's password change). The body is read (bounded) and sent as it came.
+   */
+  | { kind: 'exchange' }
+  /** Answered as it is, never forwarded (a method the controller's login resource does not have). */
+  | { kind: 'answer'; answer: UpstreamAnswer };
 
 export type HeldOpen =
-  /** `key` null: the controller wants none (no password protection). `answer` never holds the key. */
+  /** `key` null: the controller wants none (no password protection, no user logged in). `answer` never holds the key. */
   | { ok: true; key: string | null; answer: UpstreamAnswer }
   /** Refused (wrong password): the controller's answer, for the browser as it is. */
   | { ok: false; answer: UpstreamAnswer };
@@ -96,16 +245,41 @@ export type HeldOpen =
 export interface HeldSessionHooks {
   /** Requests the gateway answers itself instead of forwarding them, or null. */
   intercept(req: { method: string; path: string; query: URLSearchParams }): HeldIntercept | null;
-  /** Opens a session (`password`: the configured one, else one a user typed, else none). */
-  open(upstream: UpstreamRequest, password: string | undefined): Promise<HeldOpen>;
+  /**
+   * The credentials from the machines file the session is opened with (a typed login is then not
+   * used). Default: the configured `password`. TouchCut: none (its `apiKey` is no login).
+   */
+  configured?(secrets: GatewaySecrets): HeldCredentials | undefined;
+  /** Opens a session (`credentials`: the configured ones, else what a user typed, else none). */
+  open(upstream: UpstreamRequest, credentials: HeldCredentials | undefined): Promise<HeldOpen>;
   /** Ends a session (unused, the gateway closing): best effort. */
   close?(upstream: UpstreamRequest, key: string): Promise<void>;
   /** Drops any key the browser sent from a forwarded HTTP request, then adds `key` (null: none). */
   apply(req: { headers: Record<string, string>; query: URLSearchParams }, key: string | null): void;
   /** The same for a WebSocket upgrade (the upstream URL's query and the upgrade's headers). */
   applyWs(req: { headers: Record<string, string>; query: URLSearchParams }, key: string | null): void;
-  /** The controller's status says the key is unknown or expired (DSF: 403). */
-  isExpired(status: number): boolean;
+  /**
+   * The controller's status says the key is unknown or expired (DSF: 403; TouchCut: 401). `req`:
+   * the request it answered, when there was one (a keep-alive has none).
+   */
+  isExpired(status: number, req?: { method: string; path: string }): boolean;
+  /**
+   * What happens when the key expired. 'reopen' (default): a new session is opened with the
+   * configured or typed password (kept in memory for this) and a read is sent once more (DSF).
+   * 'forget': the key is dropped and the controller's answer goes to the browser as it is, which
+   * then asks for a login again; typed credentials are never kept (a user login that expired is
+   * not renewed behind anyone's back: TouchCut).
+   */
+  expiry?: 'reopen' | 'forget';
+  /**
+   * The controller's answer to an `exchange` request (`session`: the session's current answer):
+   * the key to hold from now on (null: unchanged) and the answer for the browser, which never holds
+   * a key. A new key's `answer` also becomes the session's answer (what the next "open" gets).
+   */
+  exchanged?(
+    answer: UpstreamAnswer,
+    session: UpstreamAnswer | null,
+  ): { key: string | null; answer: UpstreamAnswer };
   /**
    * `GET <path>` with the key every `everyMs` while a browser used the machine within
    * `whileUsedWithinMs` and no upstream socket holds the session open; unused longer, the session

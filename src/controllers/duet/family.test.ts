@@ -12,7 +12,7 @@ describe('duetFamily', () => {
     });
     expect(hooks.intercept({ method: 'GET', path: '/machine/connect', query: q('password=typed') })).toEqual({
       kind: 'open',
-      password: 'typed',
+      credentials: { password: 'typed' },
     });
     expect(hooks.intercept({ method: 'GET', path: '/machine/disconnect', query: q() })).toEqual({
       kind: 'close',
@@ -22,7 +22,7 @@ describe('duetFamily', () => {
     for (const path of ['/Machine/Connect', '/machine/connect/', '/machine//%63onnect', '/MACHINE/CONNECT'])
       expect(hooks.intercept({ method: 'GET', path, query: q('PassWord=p') })).toEqual({
         kind: 'open',
-        password: 'p',
+        credentials: { password: 'p' },
       });
     expect(hooks.intercept({ method: 'HEAD', path: '/machine/connect', query: q() })).toEqual({
       kind: 'open',
@@ -55,14 +55,17 @@ describe('duetFamily', () => {
 
   it('opens with the password and answers the browser without the key', async () => {
     const calls: string[] = [];
-    const ok = await hooks.open(async (method, pq) => {
-      calls.push(`${method} ${pq}`);
-      return {
-        status: 200,
-        headers: { 'content-type': 'application/json' },
-        body: JSON.stringify({ sessionKey: 'k-123', SESSIONKEY: 'k-123', apiLevel: 1 }),
-      };
-    }, 'p w&');
+    const ok = await hooks.open(
+      async (method, pq) => {
+        calls.push(`${method} ${pq}`);
+        return {
+          status: 200,
+          headers: { 'content-type': 'application/json' },
+          body: JSON.stringify({ sessionKey: 'k-123', SESSIONKEY: 'k-123', apiLevel: 1 }),
+        };
+      },
+      { password: 'p w&' },
+    );
     expect(calls).toEqual(['GET /machine/connect?password=p+w%26']);
     expect(ok.ok && ok.key).toBe('k-123');
     expect(JSON.parse(ok.answer.body)).toEqual({ apiLevel: 1 });
@@ -76,10 +79,9 @@ describe('duetFamily', () => {
       return { status: 200, headers: {}, body: '{}' };
     }, undefined);
     expect(none.ok && none.key).toBeNull();
-    const refused = await hooks.open(
-      async () => ({ status: 403, headers: {}, body: 'Invalid password' }),
-      'x',
-    );
+    const refused = await hooks.open(async () => ({ status: 403, headers: {}, body: 'Invalid password' }), {
+      password: 'x',
+    });
     expect(refused).toEqual({ ok: false, answer: { status: 403, headers: {}, body: 'Invalid password' } });
   });
 

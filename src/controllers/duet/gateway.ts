@@ -87,13 +87,14 @@ export const duetHeldSession: HeldSessionHooks = {
     const r = routeOf(req.path);
     if (r === '/machine/connect') {
       const password = paramOf(req.query, 'password');
-      return password === null ? { kind: 'open' } : { kind: 'open', password };
+      return password === null ? { kind: 'open' } : { kind: 'open', credentials: { password } };
     }
     if (r === '/machine/disconnect') return { kind: 'close' };
     return null;
   },
 
-  async open(upstream, password) {
+  async open(upstream, credentials) {
+    const password = credentials?.password;
     const q = password !== undefined ? `?${new URLSearchParams({ password }).toString()}` : '';
     const r = await upstream('GET', `/machine/connect${q}`);
     if (r.status !== 200) return { ok: false, answer: r };

@@ -32,11 +32,23 @@ describe('touchcut access policy', () => {
   });
 
   it('the auth requests in any spelling keep their roles', () => {
+    // The login is the machine's, shared by every viewer: logging it in or out is an operator's
+    // audited command; which user is logged in is a viewer read.
     expect(touchcutAccess(viaGateway('POST', '/rest/v1/auth'))).toMatchObject({
-      role: 'viewer',
-      command: false,
+      role: 'operator',
+      command: true,
     });
-    expect(touchcutAccess(viaGateway('POST', '/REST/v1/Auth/')).role).toBe('viewer');
+    expect(touchcutAccess(viaGateway('POST', '/REST/v1/Auth/')).role).toBe('operator');
+    expect(touchcutAccess(viaGateway('DELETE', '/rest/v1/auth'))).toMatchObject({
+      role: 'operator',
+      command: true,
+    });
+    for (const m of ['GET', 'HEAD'])
+      expect(touchcutAccess(viaGateway(m, '/rest/v1/Auth/')), m).toMatchObject({
+        role: 'viewer',
+        command: false,
+      });
+    expect(touchcutAccess(viaGateway('PUT', '/rest/v1/auth')).role).toBe('supervisor');
     expect(touchcutAccess(viaGateway('POST', '/rest/v1/auth/change-password'))).toMatchObject({
       role: 'operator',
       command: true,

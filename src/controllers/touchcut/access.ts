@@ -13,8 +13,16 @@ import {
  * The TouchCut REST API v1 is read-only apart from its two auth requests, so:
  * - every documented GET (and HEAD) is a viewer read: status, stats, monitor, programs, unloader,
  *   screenshot, machine-info;
- * - `POST auth` (a TouchCut user login) is allowed to viewers and not a command: it changes nothing
- *   on the machine, and TouchCut's own user privileges then govern what the token may read;
+ * - `GET auth` (answered by the gateway, gateway.ts): which TouchCut user the console is logged in
+ *   as, a viewer read;
+ * - `POST auth` (log in) and `DELETE auth` (log out, answered by the gateway) need an operator and
+ *   are audited commands. The gateway holds the login for the machine, shared by every viewer: it
+ *   decides whose TouchCut privileges everybody reads with and whether the password change is
+ *   possible, so a viewer may not switch it (a viewer logging out would leave a machine without
+ *   an API key dark for everyone). The operator is the person at the machine, who can log in at
+ *   TouchCut's own screen anyway, and must be able to log in again when a login expires;
+ *   requiring a supervisor would leave the tablet at the machine stuck. The password is in the
+ *   body, never in the audit log;
  * - `POST auth/change-password` changes a TouchCut account: operator and audited (the TouchCut user
  *   changes their own password, knowing the old one);
  * - anything else needs a supervisor, GETs included: TouchCut's web server has more than the
@@ -69,8 +77,11 @@ export const touchcutAccess: AccessPolicy = (req: AccessRequest): AccessDecision
     const label = READ_LABELS[resource];
     if (label) return read(label);
   }
-  if (method === 'POST' && resource === 'auth') {
-    return { role: 'viewer', command: false, label: 'log in as a TouchCut user' };
+  if (resource === 'auth') {
+    if (method === 'GET' || method === 'HEAD')
+      return read('see which TouchCut user the console is logged in as');
+    if (method === 'POST') return operator('log the machine in to TouchCut as a user (for every viewer)');
+    if (method === 'DELETE') return operator('log the machine out of TouchCut (for every viewer)');
   }
   if (method === 'POST' && resource === 'auth/change-password') {
     return operator('change the TouchCut user password');

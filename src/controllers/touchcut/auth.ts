@@ -4,14 +4,17 @@ import { describeError, LinkError } from '../../fleet/errors';
 import type { RunToken } from '../../fleet/kernel';
 import type { MachineLog } from '../../fleet/log';
 import { isNotReady, type TouchcutClient } from './client';
-import { jwtExpiry, KEY_AUTH, type TouchcutState } from './state';
+import { authFromHeld, KEY_AUTH, type TouchcutState } from './state';
+import type { HeldLoginWire } from './wire';
 
 /**
- * Who the console is to TouchCut. The gateway adds the machine's API key (if one is configured)
- * unless a TouchCut user is logged in here; the user's JWT lives only in the client's memory (the
- * manual: a JWT takes precedence over a key). A 401 means "needs login": with a JWT (it expired)
- * or without one (no key, or the key was revoked). Nothing is asked until someone logs in or
- * retries without a login; nothing is retried behind the user's back.
+ * Who the console is to TouchCut. The gateway holds the machine's TouchCut user login (the JWT,
+ * shared by every viewer of the machine) and adds it to every request; without one it adds the
+ * machine's API key (if one is configured). This browser never holds a token: it asks the gateway
+ * to log in or out (`POST`/`DELETE rest/v1/auth`) and reads who is logged in (`GET rest/v1/auth`,
+ * `refreshed`). A 401 means "needs login": the user login expired or was revoked (the gateway has
+ * dropped it), or there is none and no accepted key. Nothing is asked of the controller until
+ * someone logs in or retries without a login; nothing is retried behind the user's back.
  */
 
 export interface AuthHost {
@@ -26,22 +29,26 @@ export interface AuthHost {
 }
 
 export class TouchcutAuth {
+  /** Bumped by every login and logout here: a login state read before one is stale. */
+  private version = 0;
+
   constructor(private readonly h: AuthHost) {}
 
-  /** `POST rest/v1/auth`. Errors are thrown with clear words (the login form shows them). */
+  /** `POST rest/v1/auth` through the gateway. Errors are thrown with clear words (the login form shows them). */
   async login(credentials: Record<string, string>): Promise<void> {
     const { client, store, log } = this.h;
     const username = credentials.username ?? '';
     const run = this.h.run();
     try {
-      const token = await client.login(username, credentials.password ?? '');
-      // The session stopped meanwhile: forget the token rather than write into a stopped session.
-      if (!run.alive()) return client.setToken(null);
-      store.setState({
-        auth: { mode: 'user', user: username, expiresAt: jwtExpiry(token), reason: null },
-        notice: null,
-      });
-      log.info('auth', `logged in to TouchCut as ${username}`);
+      const held = await client.login(username, credentials.password ?? '', 'touchcut.login');
+      this.version++;
+      // The session stopped meanwhile: the gateway holds the login, this session writes nothing.
+      if (!run.alive()) return;
+      store.setState({ auth: authFromHeld(held, username), notice: null });
+      log.info(
+        'auth',
+        `logged in to TouchCut as ${username} (held by the console's server for every viewer)`,
+      );
       this.resume();
     } catch (e) {
       if (run.alive() && isNotReady(e)) store.setState({ notice: describeError(e) });
@@ -50,32 +57,59 @@ export class TouchcutAuth {
     }
   }
 
-  /** Forget the user login (the JWT is dropped from memory); requests fall back to the API key. */
-  logout(): void {
+  /**
+   * Ends the machine's user login in the gateway, for every viewer; requests fall back to the API
+   * key. A refusal (a viewer may not) is thrown with clear words.
+   */
+  async logout(): Promise<void> {
+    const run = this.h.run();
     const user = this.h.store.getState().auth.user;
-    this.h.client.setToken(null);
+    await this.h.client.logout('touchcut.logout');
+    this.version++;
+    if (!run.alive()) return;
     this.h.store.setState({ auth: KEY_AUTH });
-    if (user) this.h.log.info('auth', `logged out of TouchCut (${user})`);
+    this.h.log.info('auth', `logged out of TouchCut${user ? ` (${user})` : ''}`);
     this.resume();
   }
 
-  /** Try again without a user login (the gateway's API key, if the machine has one). */
+  /** Try again without a user login of this browser's (the gateway's API key, or another viewer's login). */
   retryWithoutLogin(): void {
-    this.h.client.setToken(null);
     this.h.store.setState((s) => ({ auth: { ...KEY_AUTH, reason: s.auth.reason } }));
     this.resume();
   }
 
+  /** Marks a read of the login state (`refreshed` drops it if a login or logout came in between). */
+  stamp(): number {
+    return this.version;
+  }
+
+  /**
+   * The gateway's login state (read now and then: another viewer may have logged in or out). A
+   * login that appeared while this machine needs one: ask the machine again.
+   */
+  refreshed(held: HeldLoginWire, stamp: number): void {
+    if (stamp !== this.version || !this.h.run().alive()) return;
+    const { store, tracker } = this.h;
+    const now = authFromHeld(held);
+    const was = store.getState().auth;
+    if (now.mode === 'user') {
+      if (was.mode === 'user' && was.user === now.user && was.expiresAt === now.expiresAt) return;
+      store.setState({ auth: now });
+      if (tracker.state === 'needs-login') this.resume();
+    } else if (was.mode === 'user') {
+      store.setState({ auth: KEY_AUTH });
+    }
+  }
+
   /** A 401 from any request: the machine needs a login; nothing is asked until the user acts. */
   failed(e: unknown): void {
-    const { client, store, tracker } = this.h;
+    const { store, tracker } = this.h;
     if (!this.h.run().alive()) return;
-    const hadToken = client.loggedIn;
-    const user = store.getState().auth.user;
-    client.setToken(null);
-    const reason = hadToken
-      ? `The TouchCut login of ${user ?? 'the user'} expired or was revoked: log in again`
-      : 'TouchCut refused the request: the console has no accepted API key for this machine (or the key lacks web access). Log in with a TouchCut user.';
+    const { mode, user } = store.getState().auth;
+    const reason =
+      mode === 'user'
+        ? `The TouchCut login of ${user ?? 'the user'} expired or was revoked: log in again`
+        : 'TouchCut refused the request: the console has no accepted API key for this machine (or the key lacks web access). Log in with a TouchCut user.';
     store.setState({ auth: { ...KEY_AUTH, reason } });
     const err = e instanceof LinkError ? new LinkError('http', reason, { status: 401 }) : e;
     tracker.fail(err, { needsLogin: true });

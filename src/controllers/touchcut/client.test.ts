@@ -14,10 +14,12 @@ afterAll(() => {
   server.close();
   sim.dispose();
 });
-afterEach(() => {
+afterEach(async () => {
   sim.notReadyUntil = 0;
   sim.breakJwt = false;
   gw.apiKey = SIM_MONITOR_API_KEY;
+  // The login is the gateway's, shared: each test starts without one.
+  await new TouchcutClient('tc').logout();
 });
 
 async function failure(p: Promise<unknown>): Promise<LinkError> {
@@ -47,7 +49,7 @@ describe('touchcut client: auth error paths (manual "Failure Responses")', () =>
     const c = new TouchcutClient('tc');
     expect((await failure(c.login('nobody', 'x'))).message).toBe('TouchCut does not know this user name');
     expect((await failure(c.login('operator', 'wrong'))).message).toBe('Wrong TouchCut password');
-    expect(c.loggedIn).toBe(false);
+    expect(gw.heldToken).toBeNull();
   });
 
   it('100 application not ready is recognisable as "retry later"', async () => {
@@ -71,27 +73,39 @@ describe('touchcut client: auth error paths (manual "Failure Responses")', () =>
     expect(e.message).toMatch(/web access/);
   });
 
-  it('logs in and then sends the JWT as Bearer', async () => {
+  it('logs in through the gateway: the browser gets the user and expiry, never the JWT', async () => {
     const c = new TouchcutClient('tc');
-    await c.login('operator', 'operator');
-    expect(c.loggedIn).toBe(true);
+    const held = await c.login('operator', 'operator');
+    expect(held).toMatchObject({ loggedIn: true, user: 'operator', success: true });
+    expect(held.expiresAt).toBeGreaterThan(Date.now());
+    const token = gw.heldToken;
+    expect(token).toMatch(/^\S+\.\S+\.\S+$/);
+    expect(JSON.stringify(held)).not.toContain(token);
+    expect(gw.toBrowser.join('\n')).not.toContain(token);
     await c.status();
-    const last = gw.fromBrowser.at(-1);
-    expect(last?.headers.authorization).toMatch(/^Bearer \S+\.\S+\.\S+$/);
-    // The gateway did not add the key on top of a user login.
+    // The browser sent no token; the gateway added its own, and no key on top of a user login.
+    expect(gw.fromBrowser.at(-1)?.headers.authorization).toBeUndefined();
+    expect(sim.requests.at(-1)?.headers.authorization).toBe(`Bearer ${token}`);
     expect(sim.requests.at(-1)?.headers['x-touchcut-api-key']).toBeUndefined();
+    // Another browser (a new client) reads the same login; a logout ends it for both.
+    expect(await new TouchcutClient('tc').loginState()).toMatchObject({ loggedIn: true, user: 'operator' });
+    await new TouchcutClient('tc').logout();
+    expect(gw.heldToken).toBeNull();
+    expect(await c.loginState()).toMatchObject({ loggedIn: false });
+    await c.status();
+    expect(sim.requests.at(-1)?.headers['x-touchcut-api-key']).toBe(SIM_MONITOR_API_KEY);
   });
 });
 
 describe('touchcut client: change-password error paths', () => {
-  it('refuses locally without a JWT (an API key cannot change a password)', async () => {
+  it('without a user login TouchCut refuses it (an API key cannot change a password)', async () => {
     const e = await failure(
       new TouchcutClient('tc').changePassword(
         { oldPassword: 'a', newPassword: 'b', confirmPassword: 'b' },
         'x',
       ),
     );
-    expect(e.message).toMatch(/user login/);
+    expect(e.status).toBe(401);
   });
 
   it('the simulator answers 401 to change-password with only an API key', async () => {
@@ -128,11 +142,16 @@ describe('touchcut client: change-password error paths', () => {
     const o = new TouchcutClient('tc');
     await o.login('office', 'office');
     const before = sim.tokens.size;
-    await o.changePassword(
+    const old = gw.heldToken;
+    const changed = await o.changePassword(
       { oldPassword: 'office', newPassword: 'office2', confirmPassword: 'office2' },
       'touchcut.changePassword',
     );
     expect(sim.tokens.size).toBe(before + 1);
+    // The new JWT is the gateway's: the answer has the user and expiry only.
+    expect(gw.heldToken).not.toBe(old);
+    expect(changed).toMatchObject({ loggedIn: true, user: 'office' });
+    expect(JSON.stringify(changed)).not.toContain(gw.heldToken ?? '-');
     expect(gw.fromBrowser.at(-1)?.headers['x-shopdeck-command']).toBe('touchcut.changePassword');
     await o.status();
     await new TouchcutClient('tc').login('office', 'office2');

@@ -1,14 +1,16 @@
 import { LinkError } from '../../fleet/errors';
 import { HttpClient, parseJsonLenient, NOT_JSON, preview, type QueryValue } from '../../fleet/http';
 import { CONSOLE_HEADERS } from '../../fleet/origin';
+import { LOGIN_PATH } from './gateway';
 import {
-  authResponseSchema,
   errorBodySchema,
+  heldLoginSchema,
   machineInfoSchema,
   monitorSchema,
   openDataSchema,
   statsSchema,
   statusSchema,
+  type HeldLoginWire,
   type MachineInfoWire,
   type Monitor,
   type OpenData,
@@ -21,10 +23,12 @@ import {
  * Typed client of the TouchCut REST API v1 (manual: "The base URL for the Rest API is:
  * https://<machine IP/name>/rest/v1/"). The browser talks to `/machines/<id>/rest/v1/...`; the
  * gateway forwards over HTTPS (accepting TouchCut's self-signed certificate for this machine only)
- * and adds `X-TouchCut-API-Key` when the machine has a key and no user is logged in.
+ * and adds the TouchCut user's JWT when it holds a login, else `X-TouchCut-API-Key` when the
+ * machine has a key.
  *
- * The JWT of a TouchCut user login lives in this object only (memory): never in localStorage,
- * sessionStorage or a script-readable cookie.
+ * The browser never holds a token: a login is performed by the gateway (`POST rest/v1/auth`),
+ * which keeps the JWT for the machine (shared by every viewer) and answers with who is logged in
+ * and until when (gateway.ts `HeldLogin`). Nothing here sends `Authorization`.
  */
 
 export const REST = '/rest/v1';
@@ -189,8 +193,6 @@ function unitsParam(u: UnitsChoice | undefined): QueryValue {
 
 export class TouchcutClient {
   readonly http: HttpClient;
-  /** The JWT of a TouchCut user login; memory only. */
-  private token: string | null = null;
 
   constructor(
     readonly machineId: string,
@@ -200,16 +202,7 @@ export class TouchcutClient {
       machineId,
       timeoutMs: opts.timeoutMs ?? 8000,
       parseError: parseTouchcutError,
-      headers: (): Record<string, string> => (this.token ? { Authorization: `Bearer ${this.token}` } : {}),
     });
-  }
-
-  get loggedIn(): boolean {
-    return this.token !== null;
-  }
-
-  setToken(token: string | null): void {
-    this.token = token;
   }
 
   private async get<T>(resource: string, run: (path: string) => Promise<T>): Promise<T> {
@@ -292,7 +285,7 @@ export class TouchcutClient {
       let res: Response;
       try {
         res = await globalThis.fetch(this.http.url(path), {
-          headers: { ...(this.token ? { Authorization: `Bearer ${this.token}` } : {}), ...CONSOLE_HEADERS },
+          headers: { ...CONSOLE_HEADERS },
           signal: ctrl.signal,
           credentials: 'same-origin',
         });
@@ -332,37 +325,48 @@ export class TouchcutClient {
     }
   }
 
-  /** `POST rest/v1/auth` (username, password) → JWT, kept in memory. */
-  async login(username: string, password: string): Promise<string> {
+  /**
+   * `POST rest/v1/auth` (username, password), performed by the gateway: the JWT stays there, the
+   * answer says who is logged in and until when. A refusal is thrown with clear words.
+   */
+  async login(username: string, password: string, commandId?: string): Promise<HeldLoginWire> {
     const res = await this.http.json(
       {
         method: 'POST',
-        path: `${REST}/auth`,
+        path: LOGIN_PATH,
         // The manual lists "Parameters: username, password" without saying where; a form body
         // keeps the password out of URLs and proxy logs (the simulator accepts query, form and JSON).
         body: new URLSearchParams({ username, password }),
         headers: { 'Content-Type': 'application/x-www-form-urlencoded' },
+        commandId,
       },
-      authResponseSchema,
+      heldLoginSchema,
     );
-    if (res.success === false) throw new LinkError('vendor', 'TouchCut refused the login', { status: 200 });
-    this.token = res.token;
-    return res.token;
+    if (!res.loggedIn || res.success === false)
+      throw new LinkError('vendor', 'TouchCut refused the login', { status: 200 });
+    return res;
   }
 
-  /** `POST rest/v1/auth/change-password` — needs a JWT (not an API key); returns a new JWT. */
+  /** Who the gateway is logged in to TouchCut as for this machine (`GET rest/v1/auth`, the gateway's). */
+  loginState(signal?: AbortSignal): Promise<HeldLoginWire> {
+    return this.http.json({ path: LOGIN_PATH, signal }, heldLoginSchema);
+  }
+
+  /** Ends the machine's TouchCut user login in the gateway, for every viewer (`DELETE rest/v1/auth`). */
+  async logout(commandId?: string): Promise<void> {
+    await this.http.raw({ method: 'DELETE', path: LOGIN_PATH, commandId });
+  }
+
+  /**
+   * `POST rest/v1/auth/change-password` — needs the user login the gateway holds (not an API key);
+   * the gateway keeps the new JWT and answers with the login's new expiry.
+   */
   async changePassword(
     p: { oldPassword: string; newPassword: string; confirmPassword: string },
     commandId: string,
-  ): Promise<string> {
-    if (!this.token) {
-      throw new LinkError(
-        'vendor',
-        'Changing the password needs a TouchCut user login (an API key cannot do it)',
-      );
-    }
+  ): Promise<HeldLoginWire> {
     try {
-      const res = await this.http.json(
+      return await this.http.json(
         {
           method: 'POST',
           path: `${REST}/auth/change-password`,
@@ -374,10 +378,8 @@ export class TouchcutClient {
           headers: { 'Content-Type': 'application/x-www-form-urlencoded' },
           commandId,
         },
-        authResponseSchema,
+        heldLoginSchema,
       );
-      this.token = res.token;
-      return res.token;
     } catch (e) {
       throw explain403(e, 'auth/change-password');
     }

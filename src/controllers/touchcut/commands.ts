@@ -2,12 +2,12 @@ import type { StoreApi } from 'zustand/vanilla';
 import { defineCommands, type RunToken } from '../../fleet/kernel';
 import type { MachineSnapshot } from '../../fleet/types';
 import type { TouchcutClient } from './client';
-import { jwtExpiry, type TouchcutState } from './state';
+import type { TouchcutState } from './state';
 
 /**
  * What a TouchCut session commands. The REST API is read-only for the machine: the only command
  * is the TouchCut user's own password change (`POST rest/v1/auth/change-password`), which needs a
- * user login (JWT), never the gateway's API key (manual, "Managing REST API Keys").
+ * user login (the JWT the gateway holds), never the API key (manual, "Managing REST API Keys").
  */
 
 export interface ChangePasswordArgs {
@@ -35,10 +35,11 @@ export function touchcutCommands(
         : 'Needs a TouchCut user login (an API key cannot change a password)',
     perform: async (args, c) => {
       const sent = run();
-      const token = await client.changePassword(args, c.commandId);
+      // The gateway keeps the new JWT; the answer says until when the login now lasts.
+      const held = await client.changePassword(args, c.commandId);
       if (sent.alive())
-        stores.touchcut.setState((s) => ({ auth: { ...s.auth, expiresAt: jwtExpiry(token) } }));
-      return 'password changed; new login token in use';
+        stores.touchcut.setState((s) => ({ auth: { ...s.auth, expiresAt: held.expiresAt ?? null } }));
+      return 'password changed; the console now uses the new login';
     },
   });
   return { all: cmds.all, changePassword };

@@ -1,5 +1,7 @@
 import type { FamilyDeclaration, GatewayHints } from '../../fleet/contract';
 import { takesApiKey, touchcutAccess } from './access';
+import { touchcutHeldSession } from './gateway';
+import { touchcutSharing } from './sharing';
 
 /**
  * Node-safe declaration of the Kinetic TouchCut family (no React, no views, no CSS, no simulator:
@@ -9,17 +11,20 @@ import { takesApiKey, touchcutAccess } from './access';
  * - TouchCut serves HTTPS with its own self-signed certificate: accept it for TouchCut machines
  *   only (`rejectUnauthorized: false` on this machine's agent), never globally.
  * - The machine's `url` is the host; the client's paths already start with `/rest/v1/`.
+ * - The gateway holds the TouchCut user login (`session`, gateway.ts): the JWT never reaches a
+ *   browser; without one, `injectSecrets` adds the API key.
  */
 export const touchcutGateway: GatewayHints = {
   /**
    * Adds `X-TouchCut-API-Key` from the machine's apiKey to GET requests of the documented reads
    * that take it (status, stats, monitor, programs, unloader, screenshot: `takesApiKey`, the same
    * path form the access rule uses), and to nothing else: no other method, no undocumented path, not
-   * machine-info or auth (they take no key). Not when the browser sent `Authorization: Bearer` (a
-   * TouchCut user login: the manual says the JWT takes precedence, and a user's own privileges are
-   * what they logged in for). The key goes in a header only, never the query (queries end up in
-   * logs and error echoes). A key the browser tried to send itself is always dropped: the browser
-   * never holds one.
+   * machine-info or auth (they take no key). Not when the request carries the gateway's held JWT
+   * (`Authorization: Bearer`, added by the held session before this runs: a TouchCut user login;
+   * the manual says the JWT takes precedence, and the user's own privileges are what they logged
+   * in for). Whatever `Authorization` a browser sent was dropped before (gateway.ts `apply`). The
+   * key goes in a header only, never the query (queries end up in logs and error echoes). A key
+   * the browser tried to send itself is always dropped: the browser never holds one.
    */
   injectSecrets(req, secrets) {
     for (const k of Object.keys(req.headers))
@@ -30,6 +35,9 @@ export const touchcutGateway: GatewayHints = {
     if (secrets.apiKey && !bearer && takesApiKey(req.method, req.path))
       req.headers['X-TouchCut-API-Key'] = secrets.apiKey;
   },
+  session: touchcutHeldSession,
+  /** One upstream per machine for every viewer: the polled reads, the watch (`sharing.ts`). */
+  sharing: touchcutSharing,
 };
 
 export const touchcutDeclaration: FamilyDeclaration = {

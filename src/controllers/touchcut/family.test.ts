@@ -78,10 +78,22 @@ describe('finding 4: the TouchCut API key goes only on GETs of the documented re
     }
   });
 
-  it('a user login (Bearer) is used instead of the key', () => {
+  it('the gateway’s held login (Bearer) is used instead of the key', () => {
     expect(forwarded('GET', '/rest/v1/status', { authorization: 'Bearer a.b.c' })).toEqual({
       authorization: 'Bearer a.b.c',
     });
+  });
+
+  it('a Bearer the browser forged is dropped first (held session), so the key is still added', () => {
+    const t = splitTarget('/rest/v1/status');
+    if ('error' in t) throw new Error(t.error);
+    const h: Record<string, string> = { Authorization: 'Bearer forged', cookie: '__Secure-jwt=forged' };
+    touchcutGateway.session?.apply({ headers: h, query: t.query }, null);
+    touchcutGateway.injectSecrets?.(
+      { method: 'GET', path: t.path, headers: h, query: t.query },
+      { apiKey: KEY },
+    );
+    expect(h).toEqual({ 'X-TouchCut-API-Key': KEY });
   });
 
   it('every request that gets the key is a viewer read of the access rule (the two agree)', () => {

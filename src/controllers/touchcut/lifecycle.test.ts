@@ -5,7 +5,7 @@ import { createContext } from '../../fleet/fleet';
 import { alwaysVisible } from '../../fleet/link';
 import { TouchcutSession } from './session';
 import { setTouchcutUnits } from './state';
-import { machineInfoSchema, monitorSchema, statusSchema, type Status } from './wire';
+import { machineInfoSchema, monitorSchema, statusSchema, type HeldLoginWire, type Status } from './wire';
 
 /**
  * The TouchCut session on the kernel, with its client stubbed so the test decides when each
@@ -28,7 +28,7 @@ type Pending<T> = Array<ReturnType<typeof deferred<T>> & { args: unknown[] }>;
 /** Makes `method` of the session's client answer only when the test says so. */
 function hold<T>(
   session: TouchcutSession,
-  method: 'status' | 'machineInfo' | 'monitor' | 'screenshot' | 'login' | 'stats',
+  method: 'status' | 'machineInfo' | 'monitor' | 'screenshot' | 'login' | 'stats' | 'loginState',
 ) {
   const pending: Pending<T> = [];
   vi.spyOn(session.client, method).mockImplementation(((...args: unknown[]) => {
@@ -47,6 +47,8 @@ const STATUS: Status = statusSchema.parse({
 });
 const INFO = machineInfoSchema.parse({ exeName: 'TouchCut7.exe', exeVersion: '7.0.123', licensedTo: 'Acme' });
 const MONITOR = monitorSchema.parse({ io: { din: [], dout: [], ain: [], aout: [] }, axes: [] });
+/** The gateway's answer to a login: who, until when; never a token. */
+const HELD: HeldLoginWire = { loggedIn: true, user: 'operator' };
 const PNG = new Blob([new Uint8Array([0x89, 0x50, 0x4e, 0x47])], { type: 'image/png' });
 
 let ctx: SessionContext;
@@ -60,6 +62,8 @@ beforeEach(() => {
     { visibility: alwaysVisible, principal: () => ({ name: 'sam', role: 'operator' }) },
   );
   session = new TouchcutSession(ctx);
+  // Who the gateway is logged in as: never answered unless a test says so.
+  hold<HeldLoginWire>(session, 'loginState');
 });
 afterEach(() => {
   session.stop();
@@ -115,7 +119,7 @@ describe('touchcut session: nothing is written after stop', () => {
     const status = hold<Status>(session, 'status');
     const screenshot = hold<{ blob: Blob; bytes: number }>(session, 'screenshot');
     const stats = hold<unknown>(session, 'stats');
-    session.client.setToken('a.b.c');
+    session.store.setState({ auth: { mode: 'user', user: 'operator', expiresAt: null, reason: null } });
     session.start();
     session.screenshot.subscribe();
     const read = ctx.queries.fetch(
@@ -165,13 +169,13 @@ describe('touchcut session: nothing is written after stop', () => {
   it('a login answered after stop is forgotten, not written', async () => {
     hold<Status>(session, 'status');
     hold<typeof INFO>(session, 'machineInfo');
-    const login = hold<string>(session, 'login');
+    const login = hold<HeldLoginWire>(session, 'login');
     session.start();
     const done = session.login({ username: 'operator', password: 'operator' });
     await vi.advanceTimersByTimeAsync(0);
     const before = everything();
     session.stop();
-    login[0]?.resolve('a.b.c');
+    login[0]?.resolve(HELD);
     await done;
     expect(everything()).toEqual(before);
     expect(session.store.getState().auth.mode).toBe('key');
@@ -202,7 +206,7 @@ describe('touchcut session: polls again right after a change (kick)', () => {
   it('a login after "needs login" polls at once; nothing is asked while a login is needed', async () => {
     const status = hold<Status>(session, 'status');
     hold<typeof INFO>(session, 'machineInfo');
-    const login = hold<string>(session, 'login');
+    const login = hold<HeldLoginWire>(session, 'login');
     session.start();
     await vi.advanceTimersByTimeAsync(0);
     status[0]?.reject(new LinkError('http', 'HTTP 401', { status: 401 }));
@@ -211,7 +215,7 @@ describe('touchcut session: polls again right after a change (kick)', () => {
     await vi.advanceTimersByTimeAsync(30_000);
     expect(status).toHaveLength(1);
     const done = session.login({ username: 'operator', password: 'operator' });
-    login[0]?.resolve('a.b.c');
+    login[0]?.resolve(HELD);
     await done;
     await vi.advanceTimersByTimeAsync(0);
     expect(status).toHaveLength(2);

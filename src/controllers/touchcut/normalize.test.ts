@@ -64,11 +64,11 @@ describe('touchcut status → snapshot', () => {
 
 describe('touchcut access policy', () => {
   const req = (method: string, path: string) => ({ method, path, query: new URLSearchParams() });
-  it('reads are viewer reads, login is open, password change is an audited operator command', () => {
+  it('reads are viewer reads, the shared login and the password change are audited operator commands', () => {
     for (const p of ['status', 'stats', 'monitor', 'programs', 'unloader', 'screenshot', 'machine-info']) {
       expect(touchcutAccess(req('GET', `/rest/v1/${p}`))).toMatchObject({ role: 'viewer', command: false });
     }
-    expect(touchcutAccess(req('POST', '/rest/v1/auth'))).toMatchObject({ role: 'viewer', command: false });
+    expect(touchcutAccess(req('POST', '/rest/v1/auth'))).toMatchObject({ role: 'operator', command: true });
     expect(touchcutAccess(req('POST', '/rest/v1/auth/change-password/'))).toMatchObject({
       role: 'operator',
       command: true,

@@ -163,6 +163,108 @@ describe('touchcut session through msw', () => {
   });
 });
 
+describe('touchcut session: the gateway holds the user login', () => {
+  /** Everything this browser holds about the machine, as text. */
+  function heldByBrowser(): string {
+    return JSON.stringify([
+      ctx.snapshot.getState(),
+      session.store.getState(),
+      session.monitor.store.getState(),
+      ctx.log.store.getState(),
+      gw.toBrowser,
+    ]);
+  }
+
+  it('a login shows the user and the expiry; the token never reaches the browser; logout ends it', async () => {
+    setup(undefined);
+    session.start();
+    await settle(1500);
+    expect(ctx.snapshot.getState().link).toBe('needs-login');
+    const at = Date.now();
+    await session.login({ username: 'operator', password: 'operator' });
+    await settle(1500);
+    expect(ctx.snapshot.getState().link).toBe('online');
+    const token = gw.heldToken;
+    expect(token).toMatch(/\./);
+    const auth = session.store.getState().auth;
+    expect(auth).toMatchObject({ mode: 'user', user: 'operator', reason: null });
+    // The JWT's expiry (whole seconds), read by the gateway.
+    expect(auth.expiresAt).toBeGreaterThan(at + sim.jwtTtlMs - 1001);
+    expect(auth.expiresAt).toBeLessThanOrEqual(at + sim.jwtTtlMs);
+    // The controller got the gateway's JWT; the browser sent none and holds none.
+    expect(sim.requests.at(-1)?.headers.authorization).toBe(`Bearer ${token}`);
+    for (const r of gw.fromBrowser) expect(r.headers.authorization).toBeUndefined();
+    expect(heldByBrowser()).not.toContain(token);
+    expect(heldByBrowser()).not.toContain('"password"');
+
+    await session.logout();
+    expect(gw.heldToken).toBeNull();
+    expect(session.store.getState().auth).toMatchObject({ mode: 'key', user: null });
+    expect(
+      ctx.log.store.getState().entries.some((e) => /logged out of TouchCut \(operator\)/.test(e.text)),
+    ).toBe(true);
+    // Without a login and without a key: TouchCut says 401, the machine needs a login again.
+    await settle(1500);
+    expect(ctx.snapshot.getState().link).toBe('needs-login');
+    expect(session.store.getState().auth.reason).toMatch(/no accepted API key/);
+  });
+
+  it('a 401 after login (the login was revoked) → needs login; "try again without a login" uses the key', async () => {
+    setup(SIM_MONITOR_API_KEY);
+    session.start();
+    await session.login({ username: 'admin', password: 'admin' });
+    await settle(1500);
+    expect(ctx.snapshot.getState().link).toBe('online');
+    sim.expireAllTokens();
+    await settle(1500);
+    expect(ctx.snapshot.getState().link).toBe('needs-login');
+    expect(session.store.getState().auth).toMatchObject({ mode: 'key', user: null });
+    expect(session.store.getState().auth.reason).toMatch(/login of admin expired or was revoked/);
+    // The gateway forgot the JWT on that 401: nothing is asked of the controller meanwhile.
+    expect(gw.heldToken).toBeNull();
+    const asked = sim.requests.length;
+    await settle(5000);
+    expect(sim.requests.filter((r) => r.path.includes('/status')).length).toBe(
+      sim.requests.slice(0, asked).filter((r) => r.path.includes('/status')).length,
+    );
+    session.retryWithoutLogin();
+    await settle(1500);
+    expect(ctx.snapshot.getState().link).toBe('online');
+    expect(sim.requests.at(-1)?.headers['x-touchcut-api-key']).toBe(SIM_MONITOR_API_KEY);
+  });
+
+  it('a second browser shares the login: it shows the user and leaves "needs login" without logging in', async () => {
+    setup(undefined);
+    session.start();
+    await settle(1500);
+    const other = new TouchcutSession(
+      createContext(
+        { id: 'tc', name: 'Plasma', kind: 'touchcut', simulated: true },
+        {
+          visibility: alwaysVisible,
+          now: () => Date.now(),
+          principal: () => ({ name: 'vic', role: 'viewer' }),
+        },
+      ),
+    );
+    other.start();
+    await settle(1500);
+    expect(other.ctx.snapshot.getState().link).toBe('needs-login');
+    await session.login({ username: 'operator', password: 'operator' });
+    const logins = sim.requests.filter((r) => r.path.startsWith('/rest/v1/auth')).length;
+    await settle(16_000);
+    expect(other.store.getState().auth).toMatchObject({ mode: 'user', user: 'operator' });
+    expect(other.ctx.snapshot.getState().link).toBe('online');
+    // One login upstream for both.
+    expect(sim.requests.filter((r) => r.path.startsWith('/rest/v1/auth')).length).toBe(logins);
+    // The first browser logs out: the second one sees it at its next look.
+    await session.logout();
+    await settle(16_000);
+    expect(other.store.getState().auth.mode).toBe('key');
+    other.stop();
+  });
+});
+
 describe('touchcut session: application not ready', () => {
   it('a status answer "100 Application not ready" is a notice and a quick retry, not an error', async () => {
     setup(SIM_MONITOR_API_KEY);

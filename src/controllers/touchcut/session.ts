@@ -11,20 +11,27 @@ import { OpenDataFeed, StatsLoader, type ReadHost } from './queries';
 import { createTouchcutStore, touchcutUnits } from './state';
 import type { Status } from './wire';
 
-export { jwtExpiry, setTouchcutUnits, touchcutUnits } from './state';
+export { setTouchcutUnits, touchcutUnits } from './state';
+export { jwtExpiry } from './gateway';
 export type { TouchcutAuthState, TouchcutState } from './state';
 export type { ChangePasswordArgs } from './commands';
 
 export const STATUS_INTERVAL_MS = 1000;
 /** "Application not ready" (code 100): TouchCut is starting; look again this soon. */
 const NOT_READY_RETRY_MS = 2000;
+/**
+ * Who the gateway is logged in to TouchCut as (another viewer may log in or out): read this often.
+ * The gateway answers it itself; nothing reaches the controller.
+ */
+export const LOGIN_STATE_INTERVAL_MS = 15_000;
 
 /**
  * A TouchCut machine at run time, on the session kernel. It polls `status` once a second and
  * `machine-info` (no login) until it is known; views watch the monitor and the screen (feeds.ts)
  * and read statistics, programs and the unloader on demand (queries.ts). Its one command is the
  * user's password change (commands.ts): the REST API is read-only for the machine. Who the
- * console is to TouchCut (the gateway's API key or a user's JWT, "needs login") is auth.ts.
+ * console is to TouchCut (the gateway's API key or the user login the gateway holds, "needs
+ * login") is auth.ts; the browser never holds a token.
  */
 export class TouchcutSession extends KernelSession {
   readonly client = new TouchcutClient(this.machine.id);
@@ -75,6 +82,18 @@ export class TouchcutSession extends KernelSession {
     failed: (e) => this.statusFailed(e),
   });
 
+  /** The gateway's login state; a failure is ignored (asked again later), never touching the link. */
+  private readonly loginState = this.poll({
+    name: 'login state',
+    read: async (signal) => {
+      const stamp = this.auth.stamp();
+      return { stamp, held: await this.client.loginState(signal) };
+    },
+    apply: ({ stamp, held }) => this.auth.refreshed(held, stamp),
+    intervalMs: () => LOGIN_STATE_INTERVAL_MS,
+    failed: () => LOGIN_STATE_INTERVAL_MS,
+  });
+
   /** Cosmetic (the identity line): retried slowly, never touching the link state (status does). */
   private readonly info = this.poll({
     name: 'machine-info',
@@ -97,20 +116,24 @@ export class TouchcutSession extends KernelSession {
     this.screenshot.kick();
   }
 
+  /** The gateway holds a TouchCut user login for this machine (as last known here). */
   get loggedIn(): boolean {
-    return this.client.loggedIn;
+    return this.store.getState().auth.mode === 'user';
   }
 
   login(credentials: Record<string, string>): Promise<void> {
     return this.auth.login(credentials);
   }
 
-  logout(): void {
-    this.auth.logout();
+  /** Logs the machine out of TouchCut in the gateway (for every viewer). */
+  logout(): Promise<void> {
+    return this.auth.logout();
   }
 
   retryWithoutLogin(): void {
     this.auth.retryWithoutLogin();
+    // Another viewer may have logged the machine in meanwhile.
+    this.loginState.kick();
   }
 
   /** A 401 from any request (auth.ts). */

@@ -1,14 +1,23 @@
 import type { StoreApi } from 'zustand/vanilla';
 import { createSharedStore } from '../../fleet/kernel';
-import { UNITS_CHOICES, type MachineInfoWire, type Status, type UnitsChoice } from './wire';
+import {
+  UNITS_CHOICES,
+  type HeldLoginWire,
+  type MachineInfoWire,
+  type Status,
+  type UnitsChoice,
+} from './wire';
 
 /** The TouchCut session's own state (beyond the machine snapshot), and the units choice. */
 
 export interface TouchcutAuthState {
-  /** 'key': requests rely on the gateway's API key; 'user': a TouchCut user JWT is in memory. */
+  /**
+   * 'key': requests rely on the gateway's API key; 'user': the gateway holds a TouchCut user login
+   * (JWT) for this machine, shared by every viewer. The browser never holds the token.
+   */
   mode: 'key' | 'user';
   user: string | null;
-  /** JWT expiry (ms since epoch) if the token says so (display only). */
+  /** The login's expiry (ms since epoch) as the gateway read it from the JWT (display only). */
   expiresAt: number | null;
   /** Why a login is needed, in words. */
   reason: string | null;
@@ -60,15 +69,8 @@ export function setTouchcutUnits(units: UnitsChoice): void {
   }
 }
 
-/** Reads `exp` of a JWT for display. The token is untrusted: any failure gives null. */
-export function jwtExpiry(token: string): number | null {
-  try {
-    const part = token.split('.')[1];
-    if (!part) return null;
-    const json = atob(part.replace(/-/g, '+').replace(/_/g, '/') + '==='.slice((part.length + 3) % 4));
-    const exp = (JSON.parse(json) as { exp?: unknown }).exp;
-    return typeof exp === 'number' && Number.isFinite(exp) ? exp * 1000 : null;
-  } catch {
-    return null;
-  }
+/** The login state of the gateway's answer (`HeldLogin`, never a token). */
+export function authFromHeld(h: HeldLoginWire, fallbackUser: string | null = null): TouchcutAuthState {
+  if (!h.loggedIn) return KEY_AUTH;
+  return { mode: 'user', user: h.user ?? fallbackUser, expiresAt: h.expiresAt ?? null, reason: null };
 }

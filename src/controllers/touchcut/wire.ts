@@ -67,6 +67,20 @@ export const authResponseSchema = z.looseObject({
 export type AuthResponse = z.output<typeof authResponseSchema>;
 
 // ---------------------------------------------------------------------------------------------
+// The gateway's answer about the TouchCut login it holds (`GET`/`POST rest/v1/auth`, the password
+// change): TouchCut's fields without the token, plus who is logged in and until when
+// (gateway.ts `HeldLogin`). The JWT itself never reaches the browser.
+
+export const heldLoginSchema = z.looseObject({
+  success: optBool,
+  loggedIn: bool,
+  user: optStr,
+  /** ms since epoch, from the JWT's `exp` (display only). */
+  expiresAt: optNum,
+});
+export type HeldLoginWire = z.output<typeof heldLoginSchema>;
+
+// ---------------------------------------------------------------------------------------------
 // rest/v1/machine-info (no login)
 
 export const machineInfoSchema = z.looseObject({

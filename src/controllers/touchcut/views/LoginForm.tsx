@@ -1,14 +1,15 @@
 import { useState } from 'react';
 import type { TabProps } from '../../../fleet/contract';
 import { describeError } from '../../../fleet/errors';
-import { useSnapshot, useStoreSelect } from '../../../fleet/react';
+import { useCan, useSnapshot, useStoreSelect } from '../../../fleet/react';
 import { Button, Field, Notice } from '../../../ui';
 import type { TouchcutSession } from '../session';
 import { defaultUsers } from '../sim-users';
 
 /**
- * TouchCut user login (`POST rest/v1/auth`). The JWT it returns stays in the session's memory;
- * the password is not stored anywhere.
+ * TouchCut user login (`POST rest/v1/auth`), performed by the console's server: the JWT stays
+ * there, shared by every viewer of the machine, and never reaches this browser; the password is
+ * not stored anywhere. Logging the machine in is an operator's (access.ts): a viewer is told so.
  */
 export function LoginForm({ session }: TabProps<TouchcutSession>) {
   const { reason, notice } = useStoreSelect(session.store, (s) => ({
@@ -16,6 +17,7 @@ export function LoginForm({ session }: TabProps<TouchcutSession>) {
     notice: s.notice,
   }));
   const needsLogin = useSnapshot(session.ctx, (s) => s.link === 'needs-login');
+  const mayLogIn = useCan('operator');
   const [username, setUsername] = useState('');
   const [password, setPassword] = useState('');
   const [busy, setBusy] = useState(false);
@@ -32,6 +34,19 @@ export function LoginForm({ session }: TabProps<TouchcutSession>) {
       setBusy(false);
     }
   };
+  if (!mayLogIn) {
+    return (
+      <div className="tc-form" data-testid="touchcut-login">
+        {reason && <p>{reason}</p>}
+        {notice && <Notice tone="info">{notice}</Notice>}
+        <p className="ui-muted" data-testid="touchcut-login-needs-operator">
+          Logging this machine in to TouchCut is for an operator or a supervisor: the login is shared by
+          everyone who views the machine.
+        </p>
+        {needsLogin && <Button onClick={() => session.retryWithoutLogin()}>Try again without a login</Button>}
+      </div>
+    );
+  }
   return (
     <form
       className="tc-form"

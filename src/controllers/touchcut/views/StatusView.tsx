@@ -1,6 +1,7 @@
 import { useState } from 'react';
 import type { TabProps } from '../../../fleet/contract';
-import { CommandButton, useNow, useSnapshot, useStoreSelect } from '../../../fleet/react';
+import { describeError } from '../../../fleet/errors';
+import { CommandButton, useCan, useNow, useSnapshot, useStoreSelect } from '../../../fleet/react';
 import {
   Badge,
   Button,
@@ -221,11 +222,29 @@ function InfoPanel({ session }: TabProps<TouchcutSession>) {
   );
 }
 
-/** Who the console is to TouchCut: the gateway's API key, or a TouchCut user (JWT in memory). */
+/**
+ * Who the console is to TouchCut: the gateway's API key, or a TouchCut user login the gateway
+ * holds for the machine (shared by every viewer; the token never reaches this browser).
+ */
 export function AuthPanel({ session }: TabProps<TouchcutSession>) {
   const auth = useStoreSelect(session.store, (s) => s.auth);
   const now = useNow(5000);
   const [open, setOpen] = useState(false);
+  // Logging the machine in or out changes what every viewer reads: an operator's (access.ts).
+  const mayLogIn = useCan('operator');
+  const [busy, setBusy] = useState(false);
+  const [error, setError] = useState<string | null>(null);
+  const logout = async () => {
+    setBusy(true);
+    setError(null);
+    try {
+      await session.logout();
+    } catch (e) {
+      setError(describeError(e));
+    } finally {
+      setBusy(false);
+    }
+  };
   return (
     <Panel title="TouchCut access" actions={<UnitsPicker />} testId="touchcut-auth">
       {auth.mode === 'user' ? (
@@ -233,15 +252,27 @@ export function AuthPanel({ session }: TabProps<TouchcutSession>) {
           <p>
             Logged in to TouchCut as <strong data-testid="touchcut-user">{auth.user}</strong>
             {auth.expiresAt && (
-              <span className="ui-muted small">
+              <span className="ui-muted small" data-testid="touchcut-login-expiry">
                 {' '}
                 · login valid until {formatTime(auth.expiresAt)}
                 {auth.expiresAt < now ? ' (expired)' : ''}
               </span>
             )}
           </p>
+          <p className="ui-muted small">
+            The console's server holds this login for every viewer of the machine.
+          </p>
+          {error && (
+            <p role="alert" style={{ color: 'var(--bad)' }} data-testid="touchcut-logout-error">
+              {error}
+            </p>
+          )}
           <div className="ui-row">
-            <Button onClick={() => session.logout()}>Log out of TouchCut</Button>
+            {mayLogIn && (
+              <Button onClick={() => void logout()} busy={busy} disabled={busy} data-testid="touchcut-logout">
+                Log out of TouchCut
+              </Button>
+            )}
             <Button onClick={() => setOpen(!open)} aria-expanded={open}>
               Change password…
             </Button>
@@ -254,10 +285,12 @@ export function AuthPanel({ session }: TabProps<TouchcutSession>) {
             Using the console's API key for this machine (held by the console's server, never by this
             browser). Log in as a TouchCut user to use your own privileges.
           </p>
-          <Button onClick={() => setOpen(!open)} aria-expanded={open} data-testid="touchcut-login-open">
-            Log in as a TouchCut user…
-          </Button>
-          {open && <LoginForm session={session} />}
+          {mayLogIn && (
+            <Button onClick={() => setOpen(!open)} aria-expanded={open} data-testid="touchcut-login-open">
+              Log in as a TouchCut user…
+            </Button>
+          )}
+          {mayLogIn && open && <LoginForm session={session} />}
         </>
       )}
     </Panel>

@@ -3,6 +3,7 @@ import { act, cleanup, fireEvent, render, screen, waitFor, within } from '@testi
 import { setupServer } from 'msw/node';
 import { afterAll, afterEach, beforeAll, beforeEach, describe, expect, it } from 'vitest';
 import { createContext } from '../../../fleet/fleet';
+import { authStore } from '../../../fleet/auth';
 import { alwaysVisible } from '../../../fleet/link';
 import { simulatorHandlers } from '../../../fleet/msw';
 import { setApiOrigin } from '../../../fleet/origin';
@@ -65,6 +66,38 @@ describe('touchcut views', () => {
     expect(screen.getByTestId('touchcut-user').textContent).toBe('operator');
     expect(screen.getByTestId('touchcut-read-only')).toBeTruthy();
     expect(within(screen.getByTestId('touchcut-positions')).getAllByRole('row').length).toBeGreaterThan(3);
+  });
+
+  it('the status view shows the login the gateway holds (user, expiry) and logs it out', async () => {
+    start(SIM_MONITOR_API_KEY);
+    await waitFor(() => expect(session.ctx.snapshot.getState().link).toBe('online'));
+    render(<StatusView session={session} />);
+    fireEvent.click(await screen.findByTestId('touchcut-login-open'));
+    fireEvent.change(screen.getByTestId('touchcut-username'), { target: { value: 'admin' } });
+    fireEvent.change(screen.getByTestId('touchcut-password'), { target: { value: 'admin' } });
+    fireEvent.click(screen.getByTestId('touchcut-login-submit'));
+    expect((await screen.findByTestId('touchcut-user')).textContent).toBe('admin');
+    expect(screen.getByTestId('touchcut-login-expiry').textContent).toMatch(/login valid until/);
+    expect(gw.heldToken).not.toBeNull();
+    expect(document.body.innerHTML).not.toContain(gw.heldToken);
+    fireEvent.click(screen.getByTestId('touchcut-logout'));
+    await screen.findByTestId('touchcut-login-open');
+    expect(screen.queryByTestId('touchcut-user')).toBeNull();
+    expect(gw.heldToken).toBeNull();
+  });
+
+  it('a viewer is told that logging the machine in is for an operator, and may retry without a login', async () => {
+    authStore.setState({ mode: 'secured', user: { name: 'vic', role: 'viewer', machines: null } });
+    try {
+      start(undefined);
+      await waitFor(() => expect(session.ctx.snapshot.getState().link).toBe('needs-login'));
+      render(<LoginForm session={session} />);
+      expect(screen.getByTestId('touchcut-login-needs-operator').textContent).toMatch(/operator/);
+      expect(screen.queryByTestId('touchcut-password')).toBeNull();
+      expect(screen.getByRole('button', { name: 'Try again without a login' })).toBeTruthy();
+    } finally {
+      authStore.setState({ mode: 'unknown', user: null });
+    }
   });
 
   it('statistics: last week shows the consumables with totals', async () => {
