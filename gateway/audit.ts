@@ -39,7 +39,9 @@ export type AuditType =
   | 'password-change'
   /** A controller's TLS certificate trusted on first use, or forgotten by a supervisor. */
   | 'tls-trust'
-  | 'tls-forget';
+  | 'tls-forget'
+  /** What the gateway's watch saw a machine do (watch.ts): job started/paused/ended, alarms. */
+  | 'machine';
 
 export type AuditResult = 'ok' | 'error' | 'refused' | 'failed';
 
@@ -134,6 +136,7 @@ export const DURABLE_TYPES: ReadonlySet<AuditType> = new Set<AuditType>([
   'password-change',
   'tls-trust',
   'tls-forget',
+  'machine',
 ]);
 
 /** An entry in memory: where it is on disk once written (`seg` null: still queued). */

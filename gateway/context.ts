@@ -1,4 +1,5 @@
 import { PinStore } from './tls-pin';
+import { StreamHubs } from './streams';
 import { secretPatterns } from './redact';
 import http, { type IncomingMessage, type ServerResponse } from 'node:http';
 import https from 'node:https';
@@ -26,6 +27,7 @@ import { clientAddress, parseCookies, sendJson } from './http-util';
 import { loadMachines, redact, secretForms, type MachineEntry, type MachinesConfig } from './machines';
 import { UserDirectory, dataDirPath, usersFilePath } from './users';
 import type { HeldSession } from './held-session';
+import { UpstreamHttp, type UpstreamLimits, type UpstreamStats } from './upstream-http';
 
 export type Families = Partial<Record<MachineKind, FamilyDescriptor>>;
 
@@ -41,7 +43,7 @@ export interface GatewayOptions {
   machines?: MachinesConfig;
   /** The family registry (src/controllers/families.ts). */
   families: Families;
-  /** Clock for sessions, rate limits and elevation (tests). */
+  /** Clock for sessions, rate limits, elevation and the windows of shared reads (tests). */
   now?: () => number;
   /** Per-request timeout towards a controller, ms (default 15 s; SHOPDECK_PROXY_TIMEOUT_MS). */
   timeoutMs?: number;
@@ -63,6 +65,13 @@ export interface GatewayOptions {
    * (10 MiB) and `SHOPDECK_AUDIT_KEEP` (5).
    */
   audit?: Omit<AuditLogOptions, 'writer'>;
+  /** Bounds of the shared upstream (upstream-http.ts; tests): queue, kept answers, sizes. */
+  upstream?: Partial<UpstreamLimits>;
+  /**
+   * The gateway's own slow watch of every machine (watch.ts), with or without a viewer. On
+   * unless false (gateway tests that count every request to a controller turn it off).
+   */
+  watch?: boolean;
 }
 
 export interface Principal {
@@ -114,12 +123,18 @@ export interface GatewayContext {
   readonly pending: Set<http.ClientRequest>;
   readonly httpAgent: http.Agent;
   readonly httpsAgent: https.Agent;
+  /** Each machine's HTTP upstream, once: shared reads, read limits, keep-alive (upstream-http.ts). */
+  readonly upstream: UpstreamHttp;
+  /** Counters of a machine's upstream (benchmark, tests); null for an unknown machine. */
+  upstreamStats(id: string): UpstreamStats | null;
   readonly state: { closed: boolean };
   /**
    * Bridged browser sockets and who opened them: re-checked on logout, expiry, removal and role
    * change (`revalidateSockets`), and closed when their user may no longer hold them.
    */
   readonly liveSockets: Map<WebSocket, LiveSocket>;
+  /** Shared controller sockets, one per machine and stream (streams.ts). */
+  readonly streams: StreamHubs;
   /** Closes every bridged socket whose session, user, role or machine access is gone. */
   revalidateSockets(): void;
   /** Pinned TLS certificates of the controllers (tls-pin.ts). */
@@ -210,8 +225,18 @@ export function createContext(opts: GatewayOptions): GatewayContext {
   const httpAgent = new http.Agent({ keepAlive: false });
   // Controllers (TouchCut) use self-signed certificates: accepted on this agent only.
   const httpsAgent = new https.Agent({ keepAlive: false, rejectUnauthorized: false });
+  const upstream = new UpstreamHttp({
+    sharingOf: (m) => opts.families[m.kind]?.gateway?.sharing,
+    timeoutMs,
+    now,
+    httpAgent,
+    scrub: (text) => redact(text, allSecrets),
+    limits: opts.upstream,
+  });
+  const upstreamStats = (id: string): UpstreamStats | null => (byId.has(id) ? upstream.stats(id) : null);
   const state = { closed: false };
   const liveSockets = new Map<WebSocket, LiveSocket>();
+  const streams = new StreamHubs();
   const pins = new PinStore(dataDir);
   const patternCache = new Map<string, readonly Buffer[]>();
   const patternsFor = (m: MachineEntry): readonly Buffer[] => {
@@ -553,6 +578,8 @@ export function createContext(opts: GatewayOptions): GatewayContext {
     pending,
     httpAgent,
     httpsAgent,
+    upstream,
+    upstreamStats,
     hostAllowed,
     record,
     scrub,
@@ -569,6 +596,7 @@ export function createContext(opts: GatewayOptions): GatewayContext {
     startDemoJob,
     state,
     liveSockets,
+    streams,
     revalidateSockets,
     refusals,
     patternsFor,

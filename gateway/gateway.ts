@@ -8,8 +8,10 @@ import { BodyTooLarge, clientAddress, rejectUpgrade, sendJson } from './http-uti
 import type { MachinesConfig } from './machines';
 import { createHttpProxy, READ_METHODS } from './proxy-http';
 import { createWsProxy } from './proxy-ws';
+import { MachineWatch } from './watch';
 import { endHeldSessions } from './held-session';
 import type { UserRecord } from './users';
+import type { UpstreamStats } from './upstream-http';
 
 /**
  * The gateway: the console's own server side and its trust boundary. This file assembles the
@@ -35,6 +37,10 @@ export interface Gateway {
   goingAway(reason: string): number;
   /** Shutdown: sockets, simulators, held sessions; starts closing the audit log (`audit.close()`). */
   close(): void;
+  /** Counters of a machine's HTTP upstream (upstream-http.ts): benchmark, tests. */
+  upstreamStats(id: string): UpstreamStats | null;
+  /** Shared controller sockets of a machine (streams.ts): browser sockets joined, hubs open. */
+  streamStats(id: string): { joined: number; open: number };
 }
 
 export function createGateway(opts: GatewayOptions): Gateway {
@@ -68,8 +74,38 @@ export function createGateway(opts: GatewayOptions): Gateway {
     : null;
   demoJobs?.unref();
   const api = createApi(ctx);
-  const proxy = createHttpProxy(ctx);
-  const upgradeMachine = createWsProxy(ctx);
+  const { proxy, watchRead } = createHttpProxy(ctx);
+  const { upgradeMachine, holdStream } = createWsProxy(ctx);
+
+  // The gateway's own slow watch of every machine, viewers or not (watch.ts): job starts and ends
+  // and alarms reach the log and the audit log even when no screen is open.
+  const watches: MachineWatch[] = [];
+  if (opts.watch !== false) {
+    for (const m of config.machines) {
+      const decl = opts.families[m.kind]?.gateway?.sharing?.watch;
+      if (!decl) continue;
+      const w = new MachineWatch(m.id, decl, {
+        read: (pathAndQuery) => watchRead(m, pathAndQuery),
+        hold: (path, onFrame, onEnd) => holdStream(m, path, onFrame, onEnd),
+        report: (e) => {
+          const line = `${m.id}: ${e.what}${e.detail ? ` (${e.detail})` : ''}`;
+          if (e.what === 'alarm') ctx.log.warn(line, { machine: m.id, event: e.what });
+          else ctx.log.info(line, { machine: m.id, event: e.what });
+          record({
+            type: 'machine',
+            result: e.what === 'alarm' ? 'error' : 'ok',
+            user: 'gateway',
+            source: 'gateway',
+            machine: m.id,
+            label: e.what,
+            detail: scrub(e.detail),
+          });
+        },
+      });
+      watches.push(w);
+      w.start();
+    }
+  }
 
   // ---------------------------------------------------------------- entry points
 
@@ -153,7 +189,9 @@ export function createGateway(opts: GatewayOptions): Gateway {
     clearInterval(sweep);
     if (demoJobs) clearTimeout(demoJobs);
     ctx.refusals.dispose();
+    for (const w of watches) w.stop();
     endHeldSessions(ctx); // held controller sessions end first (held-session.ts), sims still there
+    ctx.streams.closeAll(1001, 'the console is stopping'); // shared controller sockets (streams.ts)
     for (const s of openSockets) s.terminate();
     openSockets.clear();
     for (const r of pending) r.destroy();
@@ -162,6 +200,7 @@ export function createGateway(opts: GatewayOptions): Gateway {
     sims.clear();
     httpAgent.destroy();
     httpsAgent.destroy();
+    ctx.upstream.close();
     // Queued audit entries are written and fsynced, the file closed; later ones are written
     // directly. A server awaits `audit.close()` (the same promise) before it exits.
     ctx.audit.close().catch((e: unknown) => {
@@ -178,7 +217,17 @@ export function createGateway(opts: GatewayOptions): Gateway {
     return told;
   }
 
-  return { machines: config, audit, usersFile, handle, upgrade, goingAway, close };
+  return {
+    machines: config,
+    audit,
+    usersFile,
+    handle,
+    upgrade,
+    goingAway,
+    close,
+    upstreamStats: ctx.upstreamStats,
+    streamStats: (id: string) => ctx.streams.stats(id),
+  };
 }
 
 export type { UserRecord };

@@ -117,7 +117,18 @@ async function startDsf(password: string | null = null): Promise<Dsf> {
   wss.on('connection', (sock, req) => {
     d.wsSeen.push({ url: req.url ?? '', headers: req.headers });
     sock.send(JSON.stringify({ state: { status: 'idle' } }));
-    sock.on('message', (m) => sock.send(`echo:${String(m)}`));
+    // As DSF: one patch after an acknowledgement when something changed (here: once), and this
+    // hostile one echoes the session key it was given in it.
+    const key = new URL(req.url ?? '/', 'http://dsf').searchParams.get('sessionKey') ?? '';
+    let patched = false;
+    sock.on('message', (m) => {
+      const text = String(m);
+      if (text === 'PING\n') sock.send('PONG\n');
+      else if (text === 'OK\n' && !patched) {
+        patched = true;
+        sock.send(JSON.stringify({ state: { status: 'busy', echo: `key ${key}` } }));
+      }
+    });
   });
   await new Promise<void>((r) => server.listen(0, '127.0.0.1', () => r()));
   d.port = (server.address() as AddressInfo).port;
@@ -234,12 +245,22 @@ function expectNoKey(keys: readonly string[], ...got: Array<string | Buffer>): v
   }
 }
 
-function withHooks(patch: Partial<HeldSessionHooks>): Families {
+function withHooks(patch: Partial<HeldSessionHooks>, streamGraceMs?: number): Families {
   const hooks = duetFamily.gateway?.session;
   if (!hooks) throw new Error('the Duet family does not declare a held session');
+  const sharing = duetFamily.gateway?.sharing;
   const fam: FamilyDescriptor = {
     ...duetFamily,
-    gateway: { ...duetFamily.gateway, session: { ...hooks, ...patch } },
+    gateway: {
+      ...duetFamily.gateway,
+      session: { ...hooks, ...patch },
+      // The shared /machine socket closes this long after its last viewer (the family says 10 s).
+      ...(sharing && streamGraceMs !== undefined
+        ? {
+            sharing: { ...sharing, streams: sharing.streams?.map((x) => ({ ...x, graceMs: streamGraceMs })) },
+          }
+        : {}),
+    },
   };
   return { duet: fam };
 }
@@ -383,7 +404,8 @@ describe('held Duet session: the browser never sees a session key', () => {
     expect(d.keys).toHaveLength(1);
 
     d.expire();
-    const read = await send(s, 'GET', '/machines/mk3/machine/model', s.viewer);
+    // (A query makes it a read the gateway does not share: it must reach the controller.)
+    const read = await send(s, 'GET', '/machines/mk3/machine/model?again=1', s.viewer);
     expect(read.status).toBe(200);
     expect(d.keys).toHaveLength(2);
     const models = d.seen.filter((x) => pathOf(x.url) === '/machine/model');
@@ -471,7 +493,7 @@ describe('held Duet session: the browser never sees a session key', () => {
     const d = await startDsf();
     const s = await setup(
       [duet('mk3', d)],
-      withHooks({ keepAlive: { path: '/machine/noop', everyMs: 30, whileUsedWithinMs: 150 } }),
+      withHooks({ keepAlive: { path: '/machine/noop', everyMs: 30, whileUsedWithinMs: 150 } }, 100),
     );
     const ws = await openWs(`ws://${s.gw.host}/machines/mk3/machine`, { Cookie: s.viewer, Origin: s.gw.url });
     await new Promise((r) => setTimeout(r, 400));

@@ -1,4 +1,5 @@
-import http, { type IncomingMessage, type ServerResponse } from 'node:http';
+import http, { IncomingMessage, type ServerResponse } from 'node:http';
+import { Socket } from 'node:net';
 import https from 'node:https';
 import type { TLSSocket } from 'node:tls';
 import { pipeline, type Transform } from 'node:stream';
@@ -21,9 +22,12 @@ import type { GatewayContext, Verdict } from './context';
 import { crossSiteProblem } from './csrf';
 import type { AccessDecision } from '../src/fleet/access';
 import { unreachableReason } from './log';
+import { captureAnswer } from './upstream-http';
 
 const MAX_CLASSIFY_BODY = 1024 * 1024;
 const MAX_SIM_BODY = 64 * 1024 * 1024;
+/** The watch reads status answers: a few kB; a model (Duet) some tens. */
+const WATCH_READ_MAX = 2 * 1024 * 1024;
 export const READ_METHODS = new Set(['GET', 'HEAD', 'OPTIONS']);
 
 /**
@@ -213,7 +217,26 @@ export function createHttpProxy(ctx: GatewayContext) {
       });
     };
 
-    const headers = forwardRequestHeaders(req.headers);
+    await sendUpstream(req, res, m, method, t, forwardRequestHeaders(req.headers), body, isCommand, done);
+  }
+
+  /**
+   * An authorized request on its way to the controller: the held session's key, the family's
+   * secrets, then one upstream per machine (upstream-http.ts). Also the way of the gateway's own
+   * reads (the watch, `watchRead`), which have no browser behind them.
+   */
+  async function sendUpstream(
+    req: IncomingMessage,
+    res: ServerResponse,
+    m: MachineEntry,
+    method: string,
+    t: SplitTarget,
+    headers: Record<string, string>,
+    body: Buffer | null,
+    isCommand: boolean,
+    done: (r: { status?: number; error?: string }) => void,
+  ): Promise<void> {
+    const fam = opts.families[m.kind];
     if (patternsFor(m).length) {
       // A range of an answer could cut a secret into pieces too short to recognise.
       delete headers.range;
@@ -223,21 +246,33 @@ export function createHttpProxy(ctx: GatewayContext) {
     const before = query.toString();
     // Held controller session (held-session.ts): connect/disconnect are answered there, the
     // browser's key is dropped and the gateway's added; `held` re-sends an expired read once.
-    const held = await holdHttp(ctx, m, req, res, { method, path: t.path, query, headers, isCommand }, done);
+    const held = await holdHttp(
+      ctx,
+      m,
+      req,
+      res,
+      { method, path: t.path, query, headers, isCommand, body },
+      done,
+    );
     if (held === 'answered') return;
     fam?.gateway?.injectSecrets?.({ method, path: t.path, headers, query }, m.secrets);
     const qs = query.toString() === before ? t.rawQuery : query.toString();
     const pathAndQuery = t.path + (qs ? `?${qs}` : '');
 
-    if (m.simulated) {
-      await answerFromSimulator(req, res, m, method, pathAndQuery, headers, body, done, held);
-      return;
-    }
-    if (!m.url) {
+    const url = m.url;
+    if (!m.simulated && !url) {
       sendJson(res, 502, { error: `machine ${m.id} has no url` });
       return;
     }
-    await forward(req, res, m, m.url, method, t.path, pathAndQuery, headers, body, done, held);
+    // One upstream per machine (upstream-http.ts): identical reads shared, reads limited, commands
+    // at once. `sink` is the browser's response, or a capture whose answer several browsers get.
+    await ctx.upstream.send(
+      { machine: m, req, res, method, path: t.path, query: t.query, pathAndQuery, headers, isCommand, held },
+      (sink, agent, h) =>
+        m.simulated || !url
+          ? answerFromSimulator(req, sink, m, method, pathAndQuery, headers, body, done, h)
+          : forward(req, sink, m, url, method, t.path, pathAndQuery, headers, body, done, h, agent),
+    );
   }
 
   async function answerFromSimulator(
@@ -337,6 +372,8 @@ export function createHttpProxy(ctx: GatewayContext) {
     body: Buffer | null,
     done: (r: { status?: number; error?: string }) => void,
     held: HeldHttp | null = null,
+    /** For `http:` controllers (upstream-http.ts: the machine's reads may keep connections alive). */
+    agent: http.Agent = httpAgent,
   ): Promise<void> {
     const isHttps = target.protocol === 'https:';
     const basePath = target.pathname.replace(/\/+$/, '');
@@ -388,7 +425,7 @@ export function createHttpProxy(ctx: GatewayContext) {
       method,
       path: basePath + pathAndQuery,
       headers: { ...headers, host: target.host },
-      ...(socket ? { createConnection: () => socket } : { agent: httpAgent }),
+      ...(socket ? { createConnection: () => socket } : { agent }),
     });
     pending.add(upstream);
     let timedOut = false;
@@ -422,7 +459,7 @@ export function createHttpProxy(ctx: GatewayContext) {
       const status = up.statusCode ?? 502;
       // Held session (held-session.ts): a read whose key expired is sent once more with a new key.
       const again = (pq?: string): void =>
-        void forward(req, res, m, target, method, path, pq ?? pathAndQuery, headers, body, done);
+        void forward(req, res, m, target, method, path, pq ?? pathAndQuery, headers, body, done, null, agent);
       if (held?.retry(status, again, { request: upstream, response: up })) return;
       const given = forwardResponseHeaders(up.headers);
       for (const [k, v] of Object.entries(given)) {
@@ -479,5 +516,25 @@ export function createHttpProxy(ctx: GatewayContext) {
     } else req.pipe(upstream);
   }
 
-  return proxy;
+  /**
+   * The gateway's own read of a machine (its watch, watch.ts): no browser behind it, so no user
+   * and no role check, hence only what the family classifies as a read. It takes the browsers'
+   * way (held session, secrets, sharing: within a window it costs the controller nothing).
+   */
+  async function watchRead(m: MachineEntry, pathAndQuery: string): Promise<{ status: number; body: string }> {
+    const t = splitTarget(pathAndQuery);
+    if ('error' in t) throw new Error(t.error);
+    const decision = classify(m, { method: 'GET', path: t.path, query: t.query });
+    if (decision.command) throw new Error(`${t.path} is a command: the watch only reads`);
+    const req = new IncomingMessage(new Socket());
+    req.method = 'GET';
+    req.url = pathAndQuery;
+    req.push(null);
+    const { res, answer } = captureAnswer(WATCH_READ_MAX);
+    await sendUpstream(req, res, m, 'GET', t, {}, null, false, () => undefined);
+    const a = await answer;
+    return { status: a.status, body: a.body.toString('utf8') };
+  }
+
+  return { proxy, watchRead };
 }

@@ -13,7 +13,9 @@ import { clientAddress, forwardRequestHeaders, rejectUpgrade } from './http-util
 import { redact } from './machines';
 import { auditTarget, splitTarget } from './paths';
 import { bridgeSimSocket } from './sim-server';
-import { holdSocket } from './held-session';
+import { holdSocket, type HeldSocket } from './held-session';
+import type { SharedStreamDecl } from '../src/fleet/contract';
+import { simUpstream, StreamHub, StreamHubs, wsUpstream } from './streams';
 import type { GatewayContext } from './context';
 import { unreachableReason } from './log';
 
@@ -33,6 +35,7 @@ export function createWsProxy(ctx: GatewayContext) {
     simulatorFor,
     state,
     liveSockets,
+    streams,
     patternsFor,
     pins,
     reachability,
@@ -52,23 +55,16 @@ export function createWsProxy(ctx: GatewayContext) {
     w: Who,
     decision: AccessDecision,
   ): void {
-    openSockets.add(client);
     openSockets.add(upstream);
     const patterns = patternsFor(m);
     const b = bridgeSockets(client, upstream, {
       toClient: patterns.length ? (data, isBinary) => redactFrame(data, isBinary, patterns) : undefined,
       onClose: () => {
-        openSockets.delete(client);
+        unregister();
         openSockets.delete(upstream);
-        liveSockets.delete(client);
       },
     });
-    liveSockets.set(client, {
-      machine: m.id,
-      token: w.session?.token ?? null,
-      needs: decision.role,
-      close: (code, reason) => b.close(code, reason),
-    });
+    const unregister = register(client, m, w, decision, (code, reason) => b.close(code, reason));
   }
 
   async function upgradeMachine(
@@ -148,6 +144,33 @@ export function createWsProxy(ctx: GatewayContext) {
     const held = await holdSocket(ctx, m);
     if (held && 'status' in held) return rejectUpgrade(socket, held.status, held.body);
 
+    // A shared stream (streams.ts): one controller socket per machine, every viewer joins it.
+    const shared = fam?.gateway?.sharing?.streams?.find((d) => d.matches(t.path));
+    if (shared) {
+      const r = await joinHub(m, shared, t.path, t.rawQuery, held);
+      if ('status' in r) {
+        audited({ error: r.error });
+        return rejectUpgrade(socket, r.status, {
+          error: redact(r.error, secretsOf.get(m.id) ?? []),
+          gateway: true,
+        });
+      }
+      const wss = new WebSocketServer({
+        noServer: true,
+        clientTracking: false,
+        perMessageDeflate: false,
+        maxPayload: DEFAULT_BRIDGE_LIMITS.maxClientFrame,
+      });
+      if (socket.destroyed) return;
+      wss.handleUpgrade(req, socket, head, (client) => {
+        audited({ status: 101 });
+        register(client, m, w, decision, (code, reason) => client.close(code, reason));
+        streams.noteJoin(m.id);
+        r.add(client);
+      });
+      return;
+    }
+
     if (m.simulated) {
       const sim = simulatorFor(m);
       if (!sim) return rejectUpgrade(socket, 503, { error: `no simulator for ${m.kind}` });
@@ -158,26 +181,98 @@ export function createWsProxy(ctx: GatewayContext) {
         maxPayload: DEFAULT_BRIDGE_LIMITS.maxClientFrame,
       });
       wss.handleUpgrade(req, socket, head, (client) => {
-        openSockets.add(client);
         audited({ status: 101 });
-        liveSockets.set(client, {
-          machine: m.id,
-          token: w.session?.token ?? null,
-          needs: decision.role,
-          close: (code, reason) => client.close(code, reason),
-        });
+        const unregister = register(client, m, w, decision, (code, reason) => client.close(code, reason));
         held?.track(client); // held session: the simulator's socket uses the gateway's key
         const simTarget = held
           ? held.target(t.path, t.rawQuery)
           : t.path + (t.rawQuery ? `?${t.rawQuery}` : '');
-        bridgeSimSocket(client, sim, simTarget, () => {
-          openSockets.delete(client);
-          liveSockets.delete(client);
-        });
+        bridgeSimSocket(client, sim, simTarget, unregister);
       });
       return;
     }
 
+    const headers = forwardRequestHeaders(req.headers);
+    const o = await openControllerSocket(m, t.path, t.query, t.rawQuery, headers, offered, held);
+    if (!o.ok) {
+      audited({ error: o.error });
+      return rejectUpgrade(socket, o.status, { error: o.error, ...(o.gateway ? { gateway: true } : {}) });
+    }
+    const { upstream, early, earlyClose } = o;
+    const wss = new WebSocketServer({
+      noServer: true,
+      clientTracking: false,
+      perMessageDeflate: false,
+      maxPayload: DEFAULT_BRIDGE_LIMITS.maxClientFrame,
+      handleProtocols: () => upstream.protocol || false,
+    });
+    if (socket.destroyed) {
+      upstream.close(1001, 'client went away');
+      return;
+    }
+    wss.handleUpgrade(req, socket, head, (client) => {
+      audited({ status: 101 });
+      o.stopCollecting();
+      const patterns = patternsFor(m);
+      for (const e of early)
+        client.send(patterns.length ? redactFrame(e.data, e.isBinary, patterns) : e.data, {
+          binary: e.isBinary,
+        });
+      if (upstream.readyState !== WebSocket.OPEN) {
+        // The controller closed (or broke the frame bound) before the browser was accepted.
+        const c = earlyClose()?.code ?? 1011;
+        client.close(c === 1006 || c === 1005 ? 1011 : c, earlyClose()?.reason ?? 'the controller closed');
+        return;
+      }
+      bridge(client, upstream, m, w, decision);
+      upstream.resume();
+    });
+  }
+
+  /** A browser socket of a machine, closed when its user logs out or loses the role (context.ts). */
+  function register(
+    client: WebSocket,
+    m: MachineEntry,
+    w: Who,
+    decision: AccessDecision,
+    close: (code: number, reason: string) => void,
+  ): () => void {
+    openSockets.add(client);
+    liveSockets.set(client, { machine: m.id, token: w.session?.token ?? null, needs: decision.role, close });
+    const unregister = (): void => {
+      openSockets.delete(client);
+      liveSockets.delete(client);
+    };
+    client.once('close', unregister);
+    return unregister;
+  }
+
+  type OpenedSocket =
+    | {
+        ok: true;
+        upstream: WebSocket;
+        /** Frames that came before anyone listened (bounded: the socket pauses). */
+        early: Array<{ data: RawData; isBinary: boolean }>;
+        earlyClose: () => { code: number; reason: string } | null;
+        stopCollecting: () => void;
+      }
+    | { ok: false; status: number; error: string; gateway?: boolean };
+
+  /**
+   * Opens the controller's WebSocket for `path?query` (the held session's key and the family's
+   * secrets added, the certificate checked first for wss). Resolves once it is open, or with
+   * the refusal for the browser (words without the controller's address or secrets).
+   */
+  async function openControllerSocket(
+    m: MachineEntry,
+    path: string,
+    parsed: URLSearchParams,
+    rawQuery: string,
+    headers: Record<string, string>,
+    offered: string[],
+    held: HeldSocket | null,
+  ): Promise<OpenedSocket> {
+    const fam = opts.families[m.kind];
     let baseUrl: string;
     if (m.wsUrl) {
       baseUrl = `${m.wsUrl.protocol}//${m.wsUrl.host}${m.wsUrl.pathname.replace(/\/+$/, '')}`;
@@ -186,15 +281,14 @@ export function createWsProxy(ctx: GatewayContext) {
       const host = port ? `${m.url.hostname}:${port}` : m.url.host;
       baseUrl = `${m.url.protocol === 'https:' ? 'wss:' : 'ws:'}//${host}${m.url.pathname.replace(/\/+$/, '')}`;
     } else {
-      return rejectUpgrade(socket, 502, { error: `machine ${m.id} has no url` });
+      return { ok: false, status: 502, error: `machine ${m.id} has no url` };
     }
-    const headers = forwardRequestHeaders(req.headers);
-    const query = new URLSearchParams(t.query);
+    const query = new URLSearchParams(parsed);
     const before = query.toString();
     held?.apply(query, headers); // held session (held-session.ts): the gateway's key, not the browser's
-    fam?.gateway?.injectSecrets?.({ method: 'GET', path: t.path, headers, query }, m.secrets);
-    const qs = query.toString() === before ? t.rawQuery : query.toString();
-    const target = baseUrl + t.path + (qs ? `?${qs}` : '');
+    fam?.gateway?.injectSecrets?.({ method: 'GET', path, headers, query }, m.secrets);
+    const qs = query.toString() === before ? rawQuery : query.toString();
+    const target = baseUrl + path + (qs ? `?${qs}` : '');
     const forms = secretsOf.get(m.id) ?? [];
     let tlsSocket: TLSSocket | null = null;
     if (target.startsWith('wss:')) {
@@ -207,8 +301,7 @@ export function createWsProxy(ctx: GatewayContext) {
         const reason = unreachableReason(e as Error & { code?: string }, false);
         if (reason)
           reachability.down(m.id, reason, redact(e instanceof Error ? e.message : String(e), forms));
-        audited({ error: msg });
-        return rejectUpgrade(socket, 502, { error: msg, gateway: true });
+        return { ok: false, status: 502, error: msg, gateway: true };
       }
     }
     const pinned = tlsSocket;
@@ -222,6 +315,7 @@ export function createWsProxy(ctx: GatewayContext) {
     });
     held?.track(upstream); // held session: open while this socket is
     openSockets.add(upstream);
+    upstream.once('close', () => openSockets.delete(upstream));
     const early: Array<{ data: RawData; isBinary: boolean }> = [];
     // Frames that arrive before the browser's socket is accepted: bounded like the rest.
     let earlyBytes = 0;
@@ -231,67 +325,117 @@ export function createWsProxy(ctx: GatewayContext) {
       early.push({ data, isBinary });
     };
     upstream.on('message', collect);
-    const fail = (status: number, error: string): void => {
-      openSockets.delete(upstream);
-      audited({ error });
-      rejectUpgrade(socket, status, { error: redact(error, forms) });
-    };
-    upstream.once('unexpected-response', (_r, resp) => {
-      reachability.up(m.id); // it answered, with something else than a WebSocket
-      upstream.removeAllListeners('error');
-      upstream.on('error', () => undefined);
-      fail(502, `the controller refused the WebSocket (HTTP ${resp.statusCode ?? '?'})`);
-      resp.resume();
-      upstream.terminate();
-    });
-    let opened = false;
     let earlyClose: { code: number; reason: string } | null = null;
     upstream.once('close', (code: number, reason: Buffer) => {
       earlyClose = { code, reason: reason.toString('utf8').slice(0, 120) };
     });
-    upstream.on('error', (e) => {
-      // After the handshake, errors are the bridge's business (it closes both sides): never
-      // write an HTTP answer on a socket that may already be upgraded.
-      if (!opened && upstream.readyState !== WebSocket.OPEN) {
-        const timeout = /timed out|timeout/i.test(e.message);
-        const reason = state.closed ? null : unreachableReason(e as Error & { code?: string }, false);
-        if (reason) reachability.down(m.id, reason, redact(e.message, forms));
-        fail(timeout ? 504 : 502, `cannot open the controller's WebSocket: ${e.message}`);
-      }
-    });
-    upstream.once('open', () => {
-      opened = true;
-      reachability.up(m.id);
-      const wss = new WebSocketServer({
-        noServer: true,
-        clientTracking: false,
-        perMessageDeflate: false,
-        maxPayload: DEFAULT_BRIDGE_LIMITS.maxClientFrame,
-        handleProtocols: () => upstream.protocol || false,
+    return new Promise<OpenedSocket>((resolve) => {
+      let settled = false;
+      const fail = (status: number, error: string): void => {
+        if (settled) return;
+        settled = true;
+        openSockets.delete(upstream);
+        resolve({ ok: false, status, error: redact(error, forms) });
+      };
+      upstream.once('unexpected-response', (_r, resp) => {
+        reachability.up(m.id); // it answered, with something else than a WebSocket
+        upstream.removeAllListeners('error');
+        upstream.on('error', () => undefined);
+        fail(502, `the controller refused the WebSocket (HTTP ${resp.statusCode ?? '?'})`);
+        resp.resume();
+        upstream.terminate();
       });
-      if (socket.destroyed) {
-        upstream.close(1001, 'client went away');
-        return;
-      }
-      wss.handleUpgrade(req, socket, head, (client) => {
-        audited({ status: 101 });
-        upstream.off('message', collect);
-        const patterns = patternsFor(m);
-        for (const e of early)
-          client.send(patterns.length ? redactFrame(e.data, e.isBinary, patterns) : e.data, {
-            binary: e.isBinary,
-          });
-        if (upstream.readyState !== WebSocket.OPEN) {
-          // The controller closed (or broke the frame bound) before the browser was accepted.
-          const c = earlyClose?.code ?? 1011;
-          client.close(c === 1006 || c === 1005 ? 1011 : c, earlyClose?.reason ?? 'the controller closed');
-          return;
+      upstream.on('error', (e) => {
+        // After the handshake, errors are the bridge's or the hub's business (they close both
+        // sides): never write an HTTP answer on a socket that may already be upgraded.
+        if (!settled && upstream.readyState !== WebSocket.OPEN) {
+          const timeout = /timed out|timeout/i.test(e.message);
+          const reason = state.closed ? null : unreachableReason(e as Error & { code?: string }, false);
+          if (reason) reachability.down(m.id, reason, redact(e.message, forms));
+          fail(timeout ? 504 : 502, `cannot open the controller's WebSocket: ${e.message}`);
         }
-        bridge(client, upstream, m, w, decision);
-        upstream.resume();
+      });
+      upstream.once('open', () => {
+        if (settled) return;
+        settled = true;
+        reachability.up(m.id);
+        resolve({
+          ok: true,
+          upstream,
+          early,
+          earlyClose: () => earlyClose,
+          stopCollecting: () => upstream.off('message', collect),
+        });
       });
     });
   }
 
-  return upgradeMachine;
+  /** The machine's shared hub for this stream: the open one, or a new one opened once. */
+  async function joinHub(
+    m: MachineEntry,
+    decl: SharedStreamDecl,
+    path: string,
+    rawQuery: string,
+    held: HeldSocket | null,
+  ): Promise<StreamHub | { status: number; error: string }> {
+    // The browser's own keys never choose or reach the hub: the query without them is the key.
+    const q = new URLSearchParams(rawQuery);
+    held?.apply(q, {});
+    const key = StreamHubs.key(m.id, path, q.toString());
+    return streams.get(key, async () => {
+      const patterns = patternsFor(m);
+      const hubOpts = {
+        toClient: patterns.length
+          ? (data: Buffer, isBinary: boolean) => redactFrame(data, isBinary, patterns)
+          : undefined,
+        warn: (msg: string) => ctx.log.warn(`${m.id}: ${msg}`, { machine: m.id }),
+        onEnd: () => streams.forget(key, hub),
+      };
+      let hub: StreamHub;
+      if (m.simulated) {
+        const sim = simulatorFor(m);
+        if (!sim) return { status: 503, error: `no simulator for ${m.kind}` };
+        const target = held ? held.target(path, rawQuery) : path + (rawQuery ? `?${rawQuery}` : '');
+        const up = simUpstream(sim, target);
+        if (!up) return { status: 404, error: 'no socket here' };
+        held?.track(up.events);
+        hub = new StreamHub(decl, up.socket, hubOpts);
+        return { hub };
+      }
+      const o = await openControllerSocket(m, path, new URLSearchParams(rawQuery), rawQuery, {}, [], held);
+      if (!o.ok) return { status: o.status, error: o.error };
+      o.stopCollecting();
+      hub = new StreamHub(decl, wsUpstream(o.upstream, o.early), hubOpts);
+      o.upstream.resume();
+      return { hub };
+    });
+  }
+
+  /**
+   * The gateway's watch holds a machine's shared stream open without a viewer (watch.ts) and
+   * reads its frames. Throws when the stream cannot be opened now.
+   */
+  async function holdStream(
+    m: MachineEntry,
+    path: string,
+    onFrame: (frame: string) => void,
+    onEnd: () => void,
+  ): Promise<() => void> {
+    const decl = opts.families[m.kind]?.gateway?.sharing?.streams?.find((d) => d.matches(path));
+    if (!decl) throw new Error(`no shared stream at ${path}`);
+    const held = await holdSocket(ctx, m);
+    if (held && 'status' in held) throw new Error(String(held.body.error));
+    const r = await joinHub(m, decl, path, '', held);
+    if ('status' in r) throw new Error(r.error);
+    const release = r.hold();
+    const offFrame = r.onFrame(onFrame);
+    const offEnd = r.onEnded(onEnd);
+    return () => {
+      offFrame();
+      offEnd();
+      release();
+    };
+  }
+
+  return { upgradeMachine, holdStream };
 }

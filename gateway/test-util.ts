@@ -44,7 +44,10 @@ export interface Stub {
 }
 
 /** A controller stand-in that records what reaches it. WebSocket: echoes frames, prefixed "echo:". */
-export async function startStub(tls?: { key: string; cert: string }): Promise<Stub> {
+export async function startStub(
+  tls?: { key: string; cert: string },
+  opts: { greeting?: string } = {},
+): Promise<Stub> {
   const seen: Seen[] = [];
   const wsSeen: Stub['wsSeen'] = [];
   const stub = { seen, wsSeen } as Stub;
@@ -68,7 +71,7 @@ export async function startStub(tls?: { key: string; cert: string }): Promise<St
   const wss = new WebSocketServer({ server });
   wss.on('connection', (sock, req) => {
     wsSeen.push({ url: req.url ?? '', headers: req.headers });
-    sock.send('hello');
+    sock.send(opts.greeting ?? 'hello');
     sock.on('message', (d) => sock.send(`echo:${String(d)}`));
   });
   await new Promise<void>((r) => server.listen(0, '127.0.0.1', () => r()));
@@ -94,7 +97,8 @@ export interface Running {
 
 /** The real middleware and upgrade listener on a plain Node server at 127.0.0.1:0. */
 export async function startGateway(opts: GatewayOptions): Promise<Running> {
-  const gw = createGateway(opts);
+  // The watch's own reads would blur the requests tests count: on only where a test asks.
+  const gw = createGateway({ watch: false, ...opts });
   const server = http.createServer((req, res) =>
     gw.handle(req, res, () => {
       res.writeHead(404, { 'Content-Type': 'text/plain' });
@@ -134,6 +138,8 @@ export function consoleFetch(url: string | URL, init: RequestInit = {}): Promise
 export function openWs(
   url: string,
   headers: Record<string, string> = {},
+  /** false: resolve as soon as it is open (`first` is ""): a controller may say nothing first. */
+  waitFirst = true,
 ): Promise<{ ws: WebSocket; first: string; next(): Promise<string>; close(): Promise<void> }> {
   return new Promise((resolve, reject) => {
     // As a browser does: the page's origin (the gateway's own host) unless the test says otherwise.
@@ -170,8 +176,12 @@ export function openWs(
       });
     });
     ws.once('error', (e) => reject(e));
+    // Closed before its first frame: say so rather than wait for ever.
+    ws.once('close', (code, reason) =>
+      reject(Object.assign(new Error(`closed ${code} ${String(reason)} before a first frame`), { code })),
+    );
     ws.once('open', () => {
-      void next().then((first) =>
+      void (waitFirst ? next() : Promise.resolve('')).then((first) =>
         resolve({
           ws,
           first,

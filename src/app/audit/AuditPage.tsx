@@ -59,6 +59,7 @@ const TYPE_WORDS: Record<string, string> = {
   'user-removed': 'User removed',
   'role-change': 'Role change',
   'password-change': 'Password change',
+  machine: 'Machine',
 };
 
 const RESULT_TONE: Record<string, Tone> = { ok: 'ok', error: 'bad', refused: 'warn', failed: 'bad' };
@@ -66,7 +67,7 @@ const RESULT_TONE: Record<string, Tone> = { ok: 'ok', error: 'bad', refused: 'wa
 function what(e: AuditRow): string {
   const parts = [e.label ?? TYPE_WORDS[e.type] ?? e.type];
   if (e.commandId) parts.push(`(${e.commandId})`);
-  if (e.type === 'role-change' || e.type === 'user-added') parts.push(e.detail ?? '');
+  if (e.type === 'role-change' || e.type === 'user-added' || e.type === 'machine') parts.push(e.detail ?? '');
   return parts.filter(Boolean).join(' ');
 }
 

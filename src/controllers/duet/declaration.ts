@@ -1,6 +1,7 @@
 import type { FamilyDeclaration } from '../../fleet/contract';
 import { duetAccess, duetAccessNeedsBody } from './access';
 import { duetHeldSession } from './gateway';
+import { duetSharing } from './sharing';
 
 /**
  * Node-safe declaration of the Duet (DSF) family: access rules and gateway hints. No React,
@@ -17,5 +18,7 @@ export const duetDeclaration: FamilyDeclaration = {
      * (or one a user typed into the login form) and keeps the key; browsers never get it.
      */
     session: duetHeldSession,
+    /** One upstream per machine for every viewer: shared reads, `WS /machine`, the watch (`sharing.ts`). */
+    sharing: duetSharing,
   },
 };

@@ -3,6 +3,7 @@ import { fixtureJson, patchFiles } from './fixtures.test-util';
 import {
   applyPatch,
   diffModel,
+  patchBetween,
   isObject,
   jsonEqual,
   takeFullModel,
@@ -172,5 +173,426 @@ describe('diffModel', () => {
     const b = structuredClone(a);
     delete (b['plugins'] as JsonObject)['EndstopsMonitor'];
     expect(diffModel(a, b)).toEqual({ plugins: { EndstopsMonitor: null } });
+  });
+});
+
+// ------------------------------------------------------------------------------------------
+// diffModel against DSF's rules: a patch that takes one model to another, however many DSF
+// patches lie between them (what the gateway sends a browser that missed some).
+
+/** A small seeded PRNG (mulberry32): the same cases on every run, a seed to reproduce one. */
+function rng(seed: number): () => number {
+  let a = seed >>> 0;
+  return () => {
+    a = (a + 0x6d2b79f5) >>> 0;
+    let t = a;
+    t = Math.imul(t ^ (t >>> 15), t | 1);
+    t ^= t + Math.imul(t ^ (t >>> 7), t | 61);
+    return ((t ^ (t >>> 14)) >>> 0) / 4294967296;
+  };
+}
+
+type Rand = () => number;
+const int = (r: Rand, n: number) => Math.floor(r() * n);
+const pick = <T>(r: Rand, xs: readonly T[]): T => xs[int(r, xs.length)] as T;
+const chance = (r: Rand, p: number) => r() < p;
+
+/** DSF's model is typed: every object of a class has the same keys (only values change). */
+const heater = (r: Rand): JsonObject => ({
+  active: int(r, 250),
+  standby: int(r, 200),
+  current: Math.round(r() * 2500) / 10,
+  state: pick(r, ['off', 'standby', 'active', 'fault']),
+  sensor: int(r, 4),
+  monitors: [{ action: int(r, 3), condition: pick(r, ['tooHigh', 'tooLow']), limit: int(r, 300) }],
+});
+const axis = (r: Rand, letter: string): JsonObject => ({
+  letter,
+  homed: chance(r, 0.5),
+  userPosition: Math.round(r() * 3000) / 10,
+  min: 0,
+  max: int(r, 400),
+});
+const KINEMATICS: Record<string, (r: Rand) => JsonObject> = {
+  coreXY: (r) => ({
+    name: 'coreXY',
+    forwardMatrix: [
+      [0.5, 0.5, int(r, 2)],
+      [0.5, -0.5, 0],
+    ],
+    segmentation: { segmentsPerSec: int(r, 100), minSegmentLength: 0.2 },
+  }),
+  delta: (r) => ({
+    name: 'delta',
+    deltaRadius: int(r, 200),
+    towers: [0, 1, 2].map(() => ({ angleCorrection: r(), diagonal: 215, xPos: r(), yPos: r() })),
+  }),
+  cartesian: (r) => ({
+    name: 'cartesian',
+    tiltCorrection: { correctionFactor: r(), lastCorrections: [r()] },
+  }),
+};
+const MONITORS: Record<string, (r: Rand) => JsonObject> = {
+  simple: (r) => ({ type: 'simple', enabled: chance(r, 0.5), status: 'ok', filamentPresent: chance(r, 0.5) }),
+  pulsed: (r) => ({
+    type: 'pulsed',
+    enabled: true,
+    status: 'ok',
+    calibrated: chance(r, 0.5) ? null : { mmPerPulse: r(), percentMax: 160, percentMin: 60 },
+    configured: { mmPerPulse: r(), percentMax: 160, percentMin: 60, sampleDistance: 5 },
+  }),
+  laser: (r) => ({ type: 'laser', enabled: true, status: 'ok', calibrated: { sensivity: r() } }),
+};
+const plugin = (r: Rand, id: string): JsonObject => ({
+  id,
+  name: id,
+  pid: chance(r, 0.3) ? -1 : int(r, 5000),
+  data: { count: int(r, 10) },
+  sbcPermissions: ['commandExecution'],
+});
+const layer = (r: Rand, n: number): JsonObject => ({
+  duration: r() * 100,
+  height: 0.2 * n,
+  temperatures: [int(r, 250)],
+});
+const messageBox = (r: Rand): JsonObject => ({ mode: int(r, 8), seq: int(r, 100), title: 'T', message: 'M' });
+
+function startModel(r: Rand): JsonObject {
+  return {
+    state: { status: 'idle', upTime: 0, messageBox: null },
+    heat: { heaters: [heater(r), heater(r), null], bedHeaters: [0, -1] },
+    move: {
+      axes: ['X', 'Y', 'Z'].map((l) => axis(r, l)),
+      kinematics: (KINEMATICS['coreXY'] as (r: Rand) => JsonObject)(r),
+    },
+    sensors: { filamentMonitors: [(MONITORS['simple'] as (r: Rand) => JsonObject)(r)] },
+    plugins: { A: plugin(r, 'A'), B: plugin(r, 'B') },
+    job: { file: { fileName: null, size: 0 }, layers: [] },
+    global: { g: 1 },
+  };
+}
+
+const arr = (v: Json | undefined): Json[] => (Array.isArray(v) ? v : []);
+const obj = (v: Json | undefined): JsonObject => (isObject(v) ? v : {});
+
+/** A sparse array patch as DSF sends it: `{}` (or `null`) for unchanged items, a change at one. */
+function sparse(items: Json[], at: number, change: Json): Json[] {
+  return items.map((x, i) => (i === at ? change : x === null ? null : {}));
+}
+
+/** One patch DSF could send for `m` (one to three changes), with a message now and then. */
+function dsfPatch(r: Rand, m: JsonObject): JsonObject {
+  const p: JsonObject = {};
+  const heaters = arr(obj(m['heat'])['heaters']);
+  const monitors = arr(obj(m['sensors'])['filamentMonitors']);
+  const layers = arr(obj(m['job'])['layers']);
+  const plugins = obj(m['plugins']);
+  for (let n = 1 + int(r, 3); n > 0; n--) {
+    switch (int(r, 14)) {
+      case 0:
+        p['state'] = {
+          status: pick(r, ['idle', 'processing', 'paused', 'halted', 'busy']),
+          upTime: int(r, 1e6),
+        };
+        break;
+      case 1: {
+        // one heater changes a value (sparse array)
+        const i = int(r, heaters.length + 1);
+        if (i < heaters.length && heaters[i] !== null)
+          p['heat'] = { heaters: sparse(heaters, i, { current: Math.round(r() * 2500) / 10 }) };
+        break;
+      }
+      case 2:
+        // heaters grow (new items whole) or shrink
+        p['heat'] = {
+          heaters: chance(r, 0.5)
+            ? [...heaters.map((h) => (h === null ? null : {})), heater(r)]
+            : heaters.slice(0, int(r, heaters.length)).map((h) => (h === null ? null : {})),
+        };
+        break;
+      case 3: {
+        // a hole, or a hole filled (whole)
+        const i = int(r, Math.max(1, heaters.length));
+        if (i < heaters.length)
+          p['heat'] = { heaters: sparse(heaters, i, heaters[i] === null ? heater(r) : null) };
+        break;
+      }
+      case 4:
+        // kinematics: a new type (whole) or a value of the same type
+        p['move'] = chance(r, 0.5)
+          ? { kinematics: (KINEMATICS[pick(r, Object.keys(KINEMATICS))] as (r: Rand) => JsonObject)(r) }
+          : { axes: [{}, { userPosition: r() * 100 }] };
+        break;
+      case 5: {
+        const k = obj(obj(m['move'])['kinematics']);
+        if (k['name'] === 'delta') p['move'] = { kinematics: { deltaRadius: int(r, 300) } };
+        if (k['name'] === 'coreXY')
+          p['move'] = {
+            kinematics: {
+              forwardMatrix: [
+                [0.5, 0.5, 1],
+                [0.5, -0.5, int(r, 3)],
+              ],
+            },
+          };
+        break;
+      }
+      case 6:
+        // a filament monitor changes type (whole item) or one value
+        p['sensors'] = {
+          filamentMonitors: chance(r, 0.5)
+            ? [(MONITORS[pick(r, Object.keys(MONITORS))] as (r: Rand) => JsonObject)(r)]
+            : monitors.map(() => ({ enabled: chance(r, 0.5) })),
+        };
+        break;
+      case 7: {
+        // plugins: add, change, delete (null)
+        const id = pick(r, ['A', 'B', 'C', 'D']);
+        const pl: JsonObject = {};
+        if (!(id in plugins)) pl[id] = plugin(r, id);
+        else pl[id] = chance(r, 0.5) ? null : { pid: int(r, 9000), data: { count: int(r, 9) } };
+        p['plugins'] = pl;
+        break;
+      }
+      case 8:
+        // layers: one more (whole), or the job restarts (none), or a new job (some)
+        p['job'] = {
+          layers: chance(r, 0.6)
+            ? [...layers.map(() => ({})), layer(r, layers.length)]
+            : chance(r, 0.5)
+              ? []
+              : [layer(r, 0), layer(r, 1)],
+        };
+        break;
+      case 9:
+        p['job'] = {
+          file: { fileName: chance(r, 0.5) ? null : `0:/gcodes/part${int(r, 5)}.gcode`, size: int(r, 1e6) },
+        };
+        break;
+      case 10:
+        p['state'] = { messageBox: chance(r, 0.5) ? null : messageBox(r) };
+        break;
+      case 11:
+        // a message, or none (`{"messages":[]}`, test_messages_2)
+        p['messages'] = chance(r, 0.3) ? [] : [{ content: `m${int(r, 100)}`, type: int(r, 3), time: null }];
+        break;
+      case 12:
+        p['global'] = {
+          g: chance(r, 0.2) ? null : int(r, 5),
+          [`v${int(r, 3)}`]: pick(r, [1, 'x', true, [1, 2], { a: 1 }]),
+        };
+        break;
+      default:
+        // an array of arrays, whole
+        p['move'] = {
+          ...obj(p['move']),
+          compensation: {
+            grid: [
+              [int(r, 3), 1],
+              [2, int(r, 3)],
+            ],
+          },
+        };
+    }
+  }
+  return p;
+}
+
+/** Applies `patch` to `from` through JSON (as a browser gets it) and compares with `to`. */
+function roundTrip(from: JsonObject, to: JsonObject, events: Json[]) {
+  const frame = JSON.parse(JSON.stringify(patchBetween(from, to, events))) as JsonObject;
+  return applyPatch(from, frame);
+}
+
+describe('diffModel property: DSF-style patch sequences', () => {
+  for (let seed = 1; seed <= 40; seed++) {
+    it(`seed ${seed}: one patch takes any model of a sequence to any later one`, () => {
+      const r = rng(seed);
+      const models: JsonObject[] = [startModel(r)];
+      const carried: Json[][] = [[]];
+      for (let i = 0; i < 20; i++) {
+        const res = applyPatch(
+          models[models.length - 1] as JsonObject,
+          dsfPatch(r, models[models.length - 1] as JsonObject),
+        );
+        models.push(res.model);
+        carried.push(res.messages);
+      }
+      for (let i = 0; i < models.length; i++) {
+        for (let j = i; j < models.length; j++) {
+          const from = models[i] as JsonObject;
+          const to = models[j] as JsonObject;
+          const events = carried.slice(i + 1, j + 1).flat();
+          const { model, messages } = roundTrip(from, to, events);
+          expect(model, `seed ${seed}, ${i} → ${j}`).toEqual(to);
+          expect(messages).toEqual(events);
+        }
+      }
+    });
+  }
+});
+
+/** `got` has everything `want` has; keys `want` lacks are null in `got` (the documented limit). */
+function expectCoveredWithNulls(got: Json | undefined, want: Json, path: string): void {
+  if (isObject(want)) {
+    expect(isObject(got), path).toBe(true);
+    const g = got as JsonObject;
+    for (const [k, v] of Object.entries(want)) expectCoveredWithNulls(g[k], v, `${path}.${k}`);
+    for (const k of Object.keys(g)) if (!(k in want)) expect(g[k], `${path}.${k} (vanished)`).toBeNull();
+    return;
+  }
+  if (Array.isArray(want)) {
+    expect(Array.isArray(got), path).toBe(true);
+    const g = got as Json[];
+    expect(g.length, `${path} length`).toBe(want.length);
+    want.forEach((w, i) => expectCoveredWithNulls(g[i], w, `${path}[${i}]`));
+    return;
+  }
+  expect(got, path).toEqual(want);
+}
+
+/** Any value at all (objects with any keys, arrays, scalars), never a `{}` array item. */
+function anyValue(r: Rand, depth: number): Json {
+  const k = int(r, depth > 2 ? 4 : 7);
+  if (k === 0) return null;
+  if (k === 1) return int(r, 10);
+  if (k === 2) return pick(r, ['a', 'b', '']);
+  if (k === 3) return chance(r, 0.5);
+  if (k === 4) return Array.from({ length: int(r, 3) }, () => anyItem(r, depth + 1));
+  const o: JsonObject = {};
+  for (let n = 1 + int(r, 3); n > 0; n--)
+    o[pick(r, ['p', 'q', 's', 'name', 'type'])] = anyValue(r, depth + 1);
+  return o;
+}
+function anyItem(r: Rand, depth: number): Json {
+  const v = anyValue(r, depth);
+  return isObject(v) && Object.keys(v).length === 0 ? { p: 1 } : v;
+}
+function anyPatch(r: Rand): JsonObject {
+  const p: JsonObject = {};
+  const top = pick(r, ['x', 'y', 'plugins', 'move', 'sensors']);
+  if (top === 'move') p['move'] = { kinematics: anyValue(r, 1) };
+  else if (top === 'sensors')
+    p['sensors'] = { filamentMonitors: Array.from({ length: int(r, 3) }, () => anyItem(r, 1)) };
+  else p[top] = anyValue(r, 0);
+  return p;
+}
+
+describe('diffModel property: arbitrary patches', () => {
+  for (let seed = 100; seed < 160; seed++) {
+    it(`seed ${seed}: exact, or a vanished key left as null (the documented limit)`, () => {
+      const r = rng(seed);
+      let model: JsonObject = { x: 1 };
+      const models = [model];
+      for (let i = 0; i < 20; i++) {
+        model = applyPatch(model, anyPatch(r)).model;
+        models.push(model);
+      }
+      for (let i = 0; i < models.length; i += 3) {
+        for (let j = i; j < models.length; j += 2) {
+          const { model: got } = roundTrip(models[i] as JsonObject, models[j] as JsonObject, []);
+          expectCoveredWithNulls(got, models[j] as JsonObject, `${i} → ${j}`);
+        }
+      }
+    });
+  }
+});
+
+describe('diffModel by hand', () => {
+  it('skips subtrees the two models share without looking into them (structural sharing)', () => {
+    const untouchable = new Proxy<JsonObject>(
+      {},
+      {
+        get: () => {
+          throw new Error('walked a shared subtree');
+        },
+        ownKeys: () => {
+          throw new Error('walked a shared subtree');
+        },
+      },
+    );
+    const from: JsonObject = { big: untouchable, state: { status: 'idle', upTime: 1 } };
+    const to = applyPatch(from, { state: { upTime: 2 } }).model;
+    expect(to['big']).toBe(untouchable);
+    expect(diffModel(from, to)).toEqual({ state: { upTime: 2 } });
+    expect(diffModel(to, to)).toBeNull();
+  });
+
+  it('sends a kinematics of a new type whole, so the old type leaves nothing behind', () => {
+    const from = applyPatch(base(), {}).model;
+    const to = applyPatch(
+      from,
+      fixtureJson('patches/dsf-python/test_move_kinematics_1__move-kinematics-delta-minimal.json'),
+    ).model;
+    expect(diffModel(from, to)).toEqual({ move: { kinematics: { name: 'delta', deltaRadius: 123 } } });
+    expect(applyPatch(from, diffModel(from, to) as JsonObject).model).toEqual(to);
+  });
+
+  it('sends a filament monitor whose type changed whole, inside a sparse array', () => {
+    let from = applyPatch(
+      base(),
+      fixtureJson('patches/dsf-python/test_sensors_filament_monitor_1__sensors-filamentMonitors-simple.json'),
+    ).model;
+    from = applyPatch(from, {
+      sensors: { filamentMonitors: [{}, { type: 'simple', enabled: false }] },
+    }).model;
+    const to = applyPatch(from, {
+      sensors: { filamentMonitors: [{}, { type: 'laser', enabled: true }] },
+    }).model;
+    expect(diffModel(from, to)).toEqual({
+      sensors: { filamentMonitors: [{}, { type: 'laser', enabled: true }] },
+    });
+  });
+
+  it('deletes plugins with null, grows and shrinks arrays by their length', () => {
+    const from: JsonObject = {
+      plugins: { A: { id: 'A' }, B: { id: 'B' } },
+      heat: { heaters: [{ c: 1 }, { c: 2 }] },
+    };
+    const to: JsonObject = { plugins: { A: { id: 'A' } }, heat: { heaters: [{ c: 1 }] } };
+    expect(diffModel(from, to)).toEqual({ plugins: { B: null }, heat: { heaters: [{}] } });
+    const grown: JsonObject = {
+      plugins: from['plugins'] as JsonObject,
+      heat: { heaters: [{ c: 1 }, { c: 2 }, null, { c: 4 }] },
+    };
+    expect(diffModel(from, grown)).toEqual({ heat: { heaters: [{}, {}, null, { c: 4 }] } });
+  });
+
+  it('sends arrays inside arrays item by item (an inner {} would read "unchanged")', () => {
+    const from: JsonObject = { m: [[{ a: 1 }, 1], [2]] };
+    const to: JsonObject = { m: [[{ a: 1 }, 3], [2]] };
+    const d = diffModel(from, to) as JsonObject;
+    expect(d).toEqual({ m: [[{}, 3], [2]] });
+    expect(applyPatch(from, d).model).toEqual(to);
+  });
+
+  it('carries events as messages, and the model keeps messages: [] once it has seen any', () => {
+    const from: JsonObject = { state: { status: 'idle' } };
+    const r = applyPatch(from, fixtureJson('patches/dsf-python/test_messages_1__messages-new.json'));
+    const frame = patchBetween(from, r.model, r.messages);
+    expect(frame).toEqual({ messages: r.messages });
+    expect(applyPatch(from, frame).model).toEqual(r.model);
+    // no events: the key is still sent the first time, so the model gains `messages: []`
+    expect(patchBetween(from, r.model, [])).toEqual({ messages: [] });
+    expect(patchBetween(r.model, r.model, [])).toEqual({});
+  });
+
+  it('documents its limit: a key DSF cannot remove is sent as null', () => {
+    // an array that shrank and grew again with another item, and an A → B → A kinematics
+    const from: JsonObject = { a: [{ p: 1, q: 2 }], move: { kinematics: { name: 'delta', r: 1, t: 2 } } };
+    const to: JsonObject = { a: [{ p: 1 }], move: { kinematics: { name: 'delta', s: 3 } } };
+    const d = diffModel(from, to) as JsonObject;
+    expect(d).toEqual({ a: [{ q: null }], move: { kinematics: { r: null, t: null, s: 3 } } });
+    expect(applyPatch(from, d).model).toEqual({
+      a: [{ p: 1, q: null }],
+      move: { kinematics: { name: 'delta', r: null, t: null, s: 3 } },
+    });
+  });
+
+  it('treats inherited names as ordinary keys', () => {
+    const from = JSON.parse('{"constructor":1,"toString":{"a":1}}') as JsonObject;
+    const to = JSON.parse('{"constructor":2,"toString":{"a":1},"valueOf":3}') as JsonObject;
+    expect(diffModel(from, to)).toEqual({ constructor: 2, valueOf: 3 });
+    expect(diffModel({}, { constructor: { a: 1 } })).toEqual({ constructor: { a: 1 } });
   });
 });

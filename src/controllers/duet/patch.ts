@@ -92,66 +92,133 @@ function mergeItem(current: Json | undefined, item: Json, path: string): Json {
 }
 
 /**
- * The inverse, for the simulator: the smallest patch (under the rules above) that turns `from`
- * into `to`, or null when nothing changed. `messages` are not diffed (they are events).
+ * The inverse: a patch (under the rules above) that turns `from` into `to`, or null when nothing
+ * changed. `messages` are not diffed (they are events; `patchBetween` carries them). Used by the
+ * simulator (one patch per acknowledgement) and by the gateway's shared `WS /machine` (one patch
+ * covering everything a slow browser missed, `sharing.ts`).
+ *
+ * Structural sharing is exploited: a subtree of `to` that is the same object as in `from` (what
+ * `applyPatch` keeps for everything a patch did not touch) is skipped without being walked, so a
+ * diff costs what changed, not the size of the model.
+ *
+ * Arrays follow DSF: the patch's length is authoritative; an object item that did not change is
+ * `{}`; a changed object item carries only its changed keys; other items are sent as they are.
+ * An item or value whose discriminator changed (`move.kinematics.name`,
+ * `sensors.filamentMonitors[].type`) is sent whole, which makes `applyPatch` replace it.
+ *
+ * Limits (DSF's patches cannot say these; its typed model never produces them, only a coalesced
+ * diff over several DSF patches could): a key that vanished from an object that merges (anything
+ * but `plugins` and a replaced discriminated object) is sent as `null`, so the result has that key
+ * set to `null` instead of missing (after an array shrank and grew again with different items, a
+ * discriminated object went A → B → A, or a plugin went and came back with other keys); `{}` as an array item over an item that is not an
+ * object cannot be said (`{}` reads "unchanged"); a `null` plugin value reads "delete".
+ * `applyPatch(from, diffModel(from, to))` equals `to` in every other case.
  */
 export function diffModel(from: JsonObject, to: JsonObject): JsonObject | null {
-  return diffObject(from, to, '');
+  return from === to ? null : diffObject(from, to, '');
+}
+
+/**
+ * One patch frame that takes `from` to `to` and carries `events` as its `messages` (the model
+ * itself keeps `messages: []` once it has seen any: that key is sent when `to` has it and `from`
+ * has not). Always an object (`{}`: nothing changed).
+ */
+export function patchBetween(from: JsonObject, to: JsonObject, events: readonly Json[]): JsonObject {
+  const patch = diffModel(from, to) ?? {};
+  if (events.length > 0 || (Object.hasOwn(to, 'messages') && !Object.hasOwn(from, 'messages')))
+    setKey(patch, 'messages', [...events]);
+  return patch;
+}
+
+/** Sets an own key, even "__proto__" (a plain assignment would change the prototype). */
+function setKey(o: JsonObject, key: string, value: Json): void {
+  Object.defineProperty(o, key, { value, enumerable: true, writable: true, configurable: true });
+}
+
+function childPath(path: string, key: string): string {
+  return path ? `${path}.${key}` : key;
+}
+
+/** `applyPatch` builds a fresh object for `to` instead of merging (its discriminator changed). */
+function replaces(from: JsonObject, to: JsonObject, path: string): boolean {
+  const disc = DISCRIMINATORS[path];
+  return disc !== undefined && Object.hasOwn(to, disc) && to[disc] !== from[disc];
 }
 
 function diffObject(from: JsonObject, to: JsonObject, path: string): JsonObject | null {
   const out: JsonObject = {};
   let changed = false;
-  for (const [key, value] of Object.entries(to)) {
-    if (!path && key === 'messages') continue;
-    const childPath = path ? `${path}.${key}` : key;
-    const d = diffValue(from[key], value, childPath);
+  const root = path === '';
+  for (const key of Object.keys(to)) {
+    if (root && key === 'messages') continue;
+    const d = diffValue(
+      Object.hasOwn(from, key) ? from[key] : undefined,
+      to[key] as Json,
+      childPath(path, key),
+    );
     if (d !== undefined) {
-      out[key] = d;
+      setKey(out, key, d);
       changed = true;
     }
   }
   for (const key of Object.keys(from)) {
-    if (!(key in to)) {
-      // Only dictionaries can lose keys; elsewhere a vanished key is sent as null.
-      out[key] = null;
-      changed = true;
-    }
+    if ((root && key === 'messages') || Object.hasOwn(to, key)) continue;
+    // Deletes a plugin; elsewhere DSF has no removal: null is the closest it can say (see above).
+    setKey(out, key, null);
+    changed = true;
   }
   return changed ? out : null;
 }
 
-/** undefined: unchanged. */
+/** The patch value under an object key; undefined: unchanged (the key is left out). */
 function diffValue(from: Json | undefined, to: Json, path: string): Json | undefined {
+  if (from === to) return undefined;
   if (Array.isArray(to)) {
-    if (!Array.isArray(from)) return to;
-    let changed = from.length !== to.length;
-    const items: Json[] = to.map((item, i) => {
-      const prev = from[i];
-      if (isObject(item) && isObject(prev)) {
-        const disc = DISCRIMINATORS[`${path}.*`];
-        if (disc && item[disc] !== prev[disc]) {
-          changed = true;
-          return item;
-        }
-        const d = diffObject(prev, item, `${path}.*`);
-        if (d) changed = true;
-        return d ?? {};
-      }
-      if (!jsonEqual(prev, item)) changed = true;
-      // An empty object item would read as "unchanged": send it as it is only when it is new.
-      return item;
-    });
-    return changed ? items : undefined;
+    const d = diffArray(from, to, path);
+    return d.changed ? d.patch : undefined;
   }
   if (isObject(to)) {
-    if (!isObject(from)) return to;
-    const disc = DISCRIMINATORS[path];
-    if (disc && to[disc] !== from[disc]) return to;
-    const d = diffObject(from, to, path);
-    return d ?? undefined;
+    // Built afresh from the patch alone: the whole object reproduces itself exactly.
+    if (!isObject(from) || replaces(from, to, path)) return to;
+    return diffObject(from, to, path) ?? undefined;
   }
-  return jsonEqual(from, to) ? undefined : to;
+  return to;
+}
+
+interface ItemDiff {
+  patch: Json;
+  changed: boolean;
+}
+
+/** An array patch: always every item (the length is authoritative), `changed` when any differs. */
+function diffArray(from: Json | undefined, to: Json[], path: string): { patch: Json[]; changed: boolean } {
+  const prev = Array.isArray(from) ? from : [];
+  let changed = !Array.isArray(from) || from.length !== to.length;
+  const itemPath = `${path}.*`;
+  const patch = to.map((item, i) => {
+    const d = diffItem(i < prev.length ? prev[i] : undefined, item, itemPath);
+    if (d.changed) changed = true;
+    return d.patch;
+  });
+  return { patch, changed };
+}
+
+/** One array item as `mergeItem` reads it. */
+function diffItem(cur: Json | undefined, item: Json, path: string): ItemDiff {
+  if (item === null) return { patch: null, changed: cur !== null };
+  if (Array.isArray(item)) return diffArray(cur, item, path);
+  if (isObject(item)) {
+    if (isObject(cur)) {
+      if (cur === item) return { patch: {}, changed: false };
+      if (replaces(cur, item, path)) return { patch: item, changed: true };
+      const d = diffObject(cur, item, path);
+      return d ? { patch: d, changed: true } : { patch: {}, changed: false };
+    }
+    // A new item (or one that was no object) is built from the patch alone. `{}` over an item
+    // that is no object reads "unchanged": a limit (see diffModel).
+    return { patch: item, changed: true };
+  }
+  return { patch: item, changed: cur !== item };
 }
 
 export function jsonEqual(a: Json | undefined, b: Json | undefined): boolean {

@@ -1,5 +1,6 @@
 import type { FamilyDeclaration } from '../../fleet/contract';
 import { pruntAccess } from './access';
+import { pruntSharing } from './sharing';
 
 /**
  * Node-safe declaration of the Prunt family (no React, no views, no CSS, no simulator): the
@@ -12,5 +13,7 @@ export const pruntDeclaration: FamilyDeclaration = {
   gateway: {
     // Pictures in the schema's help texts (`<image src="extras/images/stepper_1.png">`).
     imageAnswer: (path) => /^\/extras\/images\/[^/]+\.(png|jpe?g|gif|webp)$/i.test(path),
+    // One upstream per machine for every viewer: `/websocket/everything` and the watch.
+    sharing: pruntSharing,
   },
 };

@@ -1,0 +1,157 @@
+import { afterEach, beforeEach, describe, expect, it, vi } from 'vitest';
+import type { WatchDecl, WatchSummary } from '../src/fleet/contract';
+import { describeChange, MachineWatch, type WatchEvent } from './watch';
+
+beforeEach(() => {
+  vi.useFakeTimers();
+  vi.spyOn(Math, 'random').mockReturnValue(0); // no start jitter
+});
+afterEach(() => {
+  vi.useRealTimers();
+  vi.restoreAllMocks();
+});
+
+const S = (
+  state: WatchSummary['state'],
+  job: string | null = null,
+  alarm: string | null = null,
+): WatchSummary => ({
+  state,
+  job,
+  alarm,
+});
+
+describe('describeChange', () => {
+  it('names job starts, pauses, resumes and ends, and alarms raised and cleared', () => {
+    expect(describeChange(S('idle'), S('running', 'a.nc'))).toEqual([
+      { what: 'job started', detail: 'started: a.nc' },
+    ]);
+    expect(describeChange(S('running', 'a.nc'), S('paused', 'a.nc'))).toEqual([
+      { what: 'job paused', detail: 'paused: a.nc' },
+    ]);
+    expect(describeChange(S('paused', 'a.nc'), S('running', 'a.nc'))).toEqual([
+      { what: 'job resumed', detail: 'resumed: a.nc' },
+    ]);
+    expect(describeChange(S('running', 'a.nc'), S('idle'))).toEqual([
+      { what: 'job ended', detail: 'ended: a.nc' },
+    ]);
+    expect(describeChange(S('running', 'a.nc'), S('alarm', 'a.nc', 'flame detected'))).toEqual([
+      { what: 'alarm', detail: 'flame detected' },
+    ]);
+    expect(describeChange(S('alarm', null, 'flame detected'), S('idle'))).toEqual([
+      { what: 'alarm cleared', detail: 'cleared: flame detected' },
+    ]);
+    expect(describeChange(S('running', 'a.nc'), S('running', 'a.nc'))).toEqual([]);
+    // Not knowing is not an event.
+    expect(describeChange(S('running', 'a.nc'), S('unknown'))).toEqual([]);
+  });
+});
+
+describe('MachineWatch', () => {
+  it('polls every everyMs with nobody watching and reports each change once', async () => {
+    const answers = [
+      { status: 200, body: 'idle' },
+      { status: 200, body: 'running:part.nc' },
+      { status: 200, body: 'running:part.nc' },
+      { status: 200, body: 'idle' },
+    ];
+    const reads: string[] = [];
+    const events: WatchEvent[] = [];
+    const decl: WatchDecl = {
+      everyMs: 10_000,
+      poll: {
+        path: '/status',
+        read: (status, body) => {
+          if (status !== 200) return new Error(`HTTP ${status}`);
+          const [state, job] = body.split(':');
+          return S(state === 'running' ? 'running' : 'idle', job ?? null);
+        },
+      },
+    };
+    const w = new MachineWatch('m1', decl, {
+      read: (p) => {
+        reads.push(p);
+        return Promise.resolve(answers.shift() ?? { status: 200, body: 'idle' });
+      },
+      report: (e) => events.push(e),
+    });
+    w.start();
+    await vi.advanceTimersByTimeAsync(1); // the first poll at once (no jitter here)
+    expect(reads).toEqual(['/status']);
+    await vi.advanceTimersByTimeAsync(9_990);
+    expect(reads).toHaveLength(1);
+    await vi.advanceTimersByTimeAsync(29_990);
+    expect(reads).toHaveLength(4);
+    expect(events.map((e) => `${e.what} ${e.detail}`)).toEqual([
+      'job started started: part.nc',
+      'job ended ended: part.nc',
+    ]);
+    w.stop();
+    await vi.advanceTimersByTimeAsync(60_000);
+    expect(reads).toHaveLength(4);
+  });
+
+  it('keeps the last summary through an unreachable controller or a bad answer, without throwing', async () => {
+    let n = 0;
+    const events: WatchEvent[] = [];
+    const w = new MachineWatch(
+      'm1',
+      {
+        everyMs: 1000,
+        poll: { path: '/s', read: (_s, body) => (body === 'run' ? S('running') : new Error('garbage')) },
+      },
+      {
+        read: () => {
+          n++;
+          if (n === 1) return Promise.resolve({ status: 200, body: 'run' });
+          if (n === 2) return Promise.reject(new Error('ECONNREFUSED'));
+          return Promise.resolve({ status: 200, body: '<html>' });
+        },
+        report: (e) => events.push(e),
+      },
+    );
+    w.start();
+    await vi.advanceTimersByTimeAsync(5000);
+    expect(n).toBeGreaterThanOrEqual(3);
+    expect(w.current.state).toBe('running');
+    expect(events.map((e) => e.what)).toEqual(['job started']);
+    w.stop();
+  });
+
+  it('holds the stream open, reads its frames, and opens it again after it ended', async () => {
+    const holds: Array<{ onFrame: (f: string) => void; onEnd: () => void; released: boolean }> = [];
+    const events: WatchEvent[] = [];
+    const w = new MachineWatch(
+      'x1',
+      {
+        everyMs: 5000,
+        stream: {
+          path: '/',
+          read: (f) => (f === 'err:flameCheck' ? { state: 'alarm', alarm: 'flame' } : null),
+        },
+      },
+      {
+        read: () => Promise.reject(new Error('no polls here')),
+        hold: (_p, onFrame, onEnd) => {
+          const h = { onFrame, onEnd, released: false };
+          holds.push(h);
+          return Promise.resolve(() => {
+            h.released = true;
+          });
+        },
+        report: (e) => events.push(e),
+      },
+    );
+    w.start();
+    await vi.advanceTimersByTimeAsync(0);
+    expect(holds).toHaveLength(1);
+    holds[0]?.onFrame('ok:IDLE');
+    holds[0]?.onFrame('err:flameCheck');
+    expect(events.map((e) => `${e.what}: ${e.detail}`)).toEqual(['alarm: flame']);
+    holds[0]?.onEnd();
+    await vi.advanceTimersByTimeAsync(5000);
+    expect(holds).toHaveLength(2);
+    w.stop();
+    expect(holds[1]?.released).toBe(true);
+  });
+});

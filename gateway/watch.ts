@@ -1,0 +1,151 @@
+import type { WatchDecl, WatchSummary } from '../src/fleet/contract';
+
+/**
+ * The gateway's own slow watch of every machine (the family's `sharing.watch`), with or without
+ * a viewer: one read every `everyMs` (through the same shared path as the browsers' reads, so
+ * while someone watches it costs the controller nothing more), and/or the machine's shared
+ * stream held open with its frames read. What it learns is a `WatchSummary`; its changes become
+ * one log line and one audit entry each (job started, paused, ended; alarm raised and cleared),
+ * so the audit log knows when jobs ran even when no screen was open. This is also what alarms
+ * and job history build on.
+ */
+
+export interface WatchEvent {
+  machine: string;
+  /** "job started", "job paused", "job resumed", "job ended", "alarm", "alarm cleared" */
+  what: string;
+  detail: string;
+  summary: WatchSummary;
+}
+
+export interface WatchHost {
+  /** One read of the controller, as the browsers' reads go (held session, secrets, sharing). */
+  read(path: string): Promise<{ status: number; body: string }>;
+  /**
+   * Holds the shared stream at `path` open and hands its frames over; returns the release.
+   * `onEnd`: the stream ended (the controller closed it); the watch opens it again later.
+   */
+  hold?(path: string, onFrame: (frame: string) => void, onEnd: () => void): Promise<() => void>;
+  /** A change worth the log and the audit log. */
+  report(e: WatchEvent): void;
+  now?: () => number;
+}
+
+const EMPTY: WatchSummary = { state: 'unknown', alarm: null, job: null };
+
+/** What a change of summary means, in the words the audit log keeps (null: nothing worth it). */
+export function describeChange(
+  prev: WatchSummary,
+  next: WatchSummary,
+): Array<{ what: string; detail: string }> {
+  const out: Array<{ what: string; detail: string }> = [];
+  const job = next.job ?? prev.job;
+  const named = job ? `: ${job}` : '';
+  if (prev.state !== next.state && next.state !== 'unknown') {
+    const was = prev.state;
+    if (next.state === 'running' && was === 'paused')
+      out.push({ what: 'job resumed', detail: `resumed${named}` });
+    else if (next.state === 'running') out.push({ what: 'job started', detail: `started${named}` });
+    else if (next.state === 'paused') out.push({ what: 'job paused', detail: `paused${named}` });
+    else if (next.state === 'idle' && (was === 'running' || was === 'paused'))
+      out.push({ what: 'job ended', detail: `ended${prev.job ? `: ${prev.job}` : named}` });
+  }
+  if (next.alarm && next.alarm !== prev.alarm) out.push({ what: 'alarm', detail: next.alarm });
+  else if (!next.alarm && prev.alarm) out.push({ what: 'alarm cleared', detail: `cleared: ${prev.alarm}` });
+  return out;
+}
+
+export class MachineWatch {
+  private summary: WatchSummary = EMPTY;
+  private timer: ReturnType<typeof setTimeout> | null = null;
+  private release: (() => void) | null = null;
+  private stopped = false;
+  private inFlight = false;
+  /** When the last good summary came (ms). */
+  lastSeen: number | null = null;
+
+  constructor(
+    readonly machine: string,
+    private readonly decl: WatchDecl,
+    private readonly host: WatchHost,
+  ) {}
+
+  get current(): WatchSummary {
+    return this.summary;
+  }
+
+  start(): void {
+    if (this.decl.poll) this.schedule(Math.floor(Math.random() * Math.min(this.decl.everyMs, 2000)));
+    if (this.decl.stream && this.host.hold) void this.holdStream();
+  }
+
+  stop(): void {
+    this.stopped = true;
+    if (this.timer) clearTimeout(this.timer);
+    this.timer = null;
+    this.release?.();
+    this.release = null;
+  }
+
+  /** Applies what was learnt (a poll's summary, or part of one from a frame). */
+  learn(part: Partial<WatchSummary>): void {
+    const next: WatchSummary = { ...this.summary, ...part };
+    const prev = this.summary;
+    this.summary = next;
+    this.lastSeen = (this.host.now ?? Date.now)();
+    for (const c of describeChange(prev, next))
+      this.host.report({ machine: this.machine, what: c.what, detail: c.detail, summary: next });
+  }
+
+  private schedule(ms: number): void {
+    if (this.stopped) return;
+    this.timer = setTimeout(() => {
+      this.timer = null;
+      void this.poll().finally(() => this.schedule(this.decl.everyMs));
+    }, ms);
+  }
+
+  private async poll(): Promise<void> {
+    const p = this.decl.poll;
+    if (!p || this.inFlight || this.stopped) return;
+    this.inFlight = true;
+    try {
+      const a = await this.host.read(p.path);
+      if (this.stopped) return;
+      const s = p.read(a.status, a.body);
+      if (!(s instanceof Error)) this.learn(s);
+    } catch {
+      // Unreachable: the gateway's reachability log says so; the summary stays as last known.
+    } finally {
+      this.inFlight = false;
+    }
+  }
+
+  private async holdStream(): Promise<void> {
+    const s = this.decl.stream;
+    if (!s || !this.host.hold || this.stopped) return;
+    try {
+      const release = await this.host.hold(
+        s.path,
+        (frame) => {
+          const part = s.read(frame);
+          if (part) this.learn(part);
+        },
+        () => {
+          this.release = null;
+          this.retryStream();
+        },
+      );
+      if (this.stopped) release();
+      else this.release = release;
+    } catch {
+      this.retryStream(); // could not open it now
+    }
+  }
+
+  private retryStream(): void {
+    if (this.stopped) return;
+    const t = setTimeout(() => void this.holdStream(), this.decl.everyMs);
+    t.unref?.();
+  }
+}

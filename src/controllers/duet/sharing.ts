@@ -1,0 +1,253 @@
+import type { ModelStreamDecl, SharingHints, WatchDecl, WatchSummary } from '../../fleet/contract';
+import type { Activity } from '../../fleet/types';
+import { duetAccess } from './access';
+import { baseName } from './client';
+import { routeOf } from './gateway';
+import { applyPatch, isObject, patchBetween, takeFullModel, type Json, type JsonObject } from './patch';
+import { activityOf, alarmsOf, jobSummary } from './snapshot';
+import { machineStatus, objectModelSchema } from './wire';
+
+/**
+ * How the gateway shares one Duet (DSF) among every viewer (Node-safe, pure: the gateway and the
+ * browser import it through `declaration.ts`). DSF is ASP.NET Core on an SBC: one `WS /machine`
+ * per machine carries the object model to every browser (the gateway keeps the merged model and
+ * gives each browser the full model, then patches at its own pace); the HTTP reads the console
+ * polls are shared; the watch keeps the socket and reads the model now and then.
+ */
+
+/** The browser polls the model this often while its socket is down (session.ts POLL_EVERY_MS). */
+export const MODEL_POLL_MS = 2000;
+/** The browser's keep-alive of the DSF session while its socket is down (session.ts NOOP_EVERY_MS). */
+export const NOOP_MS = 4000;
+/** The browser pings a silent socket after this long (session.ts PING_AFTER_MS): the gateway does the same upstream. */
+export const UPSTREAM_PING_MS = 2000;
+/** The watch reads the whole model this often (see `duetWatch`). */
+export const WATCH_EVERY_MS = 10_000;
+
+/** A GET the browser polls, exactly as it sends it (routes compare as ASP.NET does: `routeOf`). */
+const POLLED: Record<string, number> = {
+  '/machine/model': MODEL_POLL_MS,
+  '/machine/noop': NOOP_MS,
+};
+
+/**
+ * `GET /machine/model` (the fallback poll while the browser's socket is down, every 2 s) and
+ * `GET /machine/noop` (the session keep-alive beside it, every 4 s) are shared, with no query
+ * (the browser sends none). Nothing else is polled by HTTP: listings, file info, downloads and the
+ * height map are on-demand reads, and `connect`/`disconnect` are the held session's (never
+ * shared: a password may ride on connect). Anything the access policy calls a command is never
+ * shared (a GET never is one on DSF today, but the policy is asked anyway).
+ */
+export function duetShareRead(path: string, query: URLSearchParams): number | null {
+  const window = POLLED[routeOf(path)];
+  if (window === undefined || [...query.keys()].length > 0) return null;
+  if (duetAccess({ method: 'GET', path, query }).command) return null;
+  return window;
+}
+
+// ---------------------------------------------------------------------------------- WS /machine
+
+function parseObject(frame: string, what: string): JsonObject | Error {
+  let parsed: unknown;
+  try {
+    parsed = JSON.parse(frame);
+  } catch {
+    return new Error(`WS /machine: ${what} that is not JSON (${frame.trim().slice(0, 60)})`);
+  }
+  return isObject(parsed) ? parsed : new Error(`WS /machine: ${what} that is not a JSON object`);
+}
+
+const isPong = (frame: string): boolean => frame.trim() === 'PONG';
+
+/**
+ * A browser's frame, as DSF's WebSocketController reads it: the frame is split at CR and LF, each
+ * line must be exactly `OK` or `PING` (or blank); anything else makes DSF close the socket (1003),
+ * so the gateway drops it. The browser sends `OK\n` after each frame and `PING\n` when the socket
+ * was silent (session.ts); DSF answers `PONG\n`, and so does the gateway (ingest.ts accepts it
+ * trimmed). A frame mixing both is dropped (the browser never sends one).
+ */
+export function duetFromBrowser(frame: string): { ack: true } | { reply: string } | null {
+  const lines = frame.split(/[\r\n]/).filter((l) => l.trim() !== '');
+  if (lines.length === 0) return null;
+  if (lines.every((l) => l === 'OK')) return { ack: true };
+  if (lines.every((l) => l === 'PING')) return { reply: 'PONG\n' };
+  return null;
+}
+
+export const duetModelStream: ModelStreamDecl = {
+  kind: 'model',
+  matches: (path) => routeOf(path) === '/machine',
+  // DSF registers a user session per socket (sbc.dsf.userSessions): a page reload should not
+  // close one and open another.
+  graceMs: 10_000,
+  full(frame) {
+    const obj = parseObject(frame, 'a first frame');
+    if (obj instanceof Error) return obj;
+    // The messages of the first frame are DSF's pending ones at that moment: events, not model.
+    return takeFullModel(obj).model;
+  },
+  apply(model, frame) {
+    // The gateway's own keep-alive answer, should it come here: nothing changes.
+    if (isPong(frame)) return { model, events: [] };
+    const patch = parseObject(frame, 'a patch');
+    if (patch instanceof Error) return patch;
+    const r = applyPatch(model, patch);
+    return { model: r.model, events: r.messages };
+  },
+  diff: (from, to, events) => JSON.stringify(patchBetween(from, to, events)),
+  first: (model) => JSON.stringify(model),
+  ack: 'OK\n',
+  fromBrowser: duetFromBrowser,
+  /**
+   * DSF answers `PING\n` with `PONG\n` (WebSocketController). Its server-side keep-alive keeps
+   * an idle socket open (ASP.NET WebSocket keep-alive), so the ping is not needed to keep it: it
+   * is how a powered-off machine is noticed (the document: "useful for clients to detect
+   * unexpected connection aborts"). Browsers' PINGs are answered by the gateway now, so the
+   * gateway must notice for them, as fast as they did (2 s of silence).
+   */
+  ping: { frame: 'PING\n', everyMs: UPSTREAM_PING_MS, isPong },
+};
+
+// ---------------------------------------------------------------------------------- watch
+
+function watchState(a: Activity): WatchSummary['state'] {
+  switch (a) {
+    case 'running':
+    case 'stopping':
+      return 'running';
+    case 'paused':
+      return 'paused';
+    case 'idle':
+      return 'idle';
+    case 'alarm':
+    case 'error':
+      return 'alarm';
+    case 'offline':
+    case 'unknown':
+      return 'unknown';
+  }
+}
+
+/** A whole object model (`GET /machine/model`, the socket's first frame) → the summary. */
+export function summaryOfModel(raw: JsonObject): WatchSummary | Error {
+  const p = objectModelSchema.safeParse(raw);
+  if (!p.success) {
+    const i = p.error.issues[0];
+    return new Error(`Object model: ${i ? `${i.path.join('.')}: ${i.message}` : 'invalid'}`);
+  }
+  const m = p.data;
+  const alarms = alarmsOf(m, () => 0);
+  return {
+    state: watchState(activityOf(m.state.status)),
+    alarm: alarms.length ? alarms.map((a) => a.message).join('; ') : null,
+    job: jobSummary(m)?.name ?? null,
+  };
+}
+
+function child(o: Json | undefined, key: string): Json | undefined {
+  return isObject(o) && Object.hasOwn(o, key) ? o[key] : undefined;
+}
+
+/**
+ * What one patch says for certain: a new `state.status` (and the alarm of `halted` or
+ * `disconnected`), a heater that went into fault, a new job file. It never clears an alarm: a
+ * patch shows only what changed, so it cannot tell that no other alarm is left (the watch's next
+ * model read does, within `WATCH_EVERY_MS`).
+ */
+function newsOfPatch(patch: JsonObject): Partial<WatchSummary> | null {
+  const out: Partial<WatchSummary> = {};
+  const alarms: string[] = [];
+  const status = child(child(patch, 'state'), 'status');
+  if (status !== undefined) {
+    const s = machineStatus.safeParse(status);
+    if (s.success) {
+      out.state = watchState(activityOf(s.data));
+      if (s.data === 'halted') alarms.push('Emergency stop: the machine is halted');
+      if (s.data === 'disconnected') alarms.push('DSF has lost the connection to the firmware board');
+    }
+  }
+  const heaters = child(child(patch, 'heat'), 'heaters');
+  if (Array.isArray(heaters)) {
+    heaters.forEach((h, i) => {
+      if (child(h, 'state') === 'fault') alarms.push(`Heater fault: heater ${i}`);
+    });
+  }
+  if (alarms.length) {
+    out.state = 'alarm';
+    out.alarm = alarms.join('; ');
+  }
+  const fileName = child(child(child(patch, 'job'), 'file'), 'fileName');
+  if (fileName === null) out.job = null;
+  else if (typeof fileName === 'string') out.job = fileName ? baseName(fileName) : null;
+  return Object.keys(out).length ? out : null;
+}
+
+/** The top-level parts every whole model has (model_geminiv2.json, model_virgin.json). */
+const WHOLE_PARTS = ['boards', 'directories', 'fans', 'heat', 'job', 'move', 'state', 'tools', 'volumes'];
+
+/**
+ * A frame that is a whole model (a socket's first frame) rather than a patch: every part is
+ * there and every heater is whole (a patch sends `{}` for heaters it does not change).
+ */
+function looksWhole(obj: JsonObject): boolean {
+  if (!WHOLE_PARTS.every((k) => Object.hasOwn(obj, k))) return false;
+  const heaters = child(child(obj, 'heat'), 'heaters');
+  return (
+    child(child(obj, 'state'), 'status') !== undefined &&
+    Array.isArray(heaters) &&
+    heaters.every((h) => h === null || child(h, 'state') !== undefined)
+  );
+}
+
+/**
+ * A frame of the shared `WS /machine`: a full model (a socket's first frame: everything) or a
+ * patch (what it says for certain). PONG, garbage and patches without news: null. Never throws.
+ */
+export function readModelFrame(frame: string): Partial<WatchSummary> | null {
+  const obj = parseObject(frame, 'a frame');
+  if (obj instanceof Error) return null;
+  if (looksWhole(obj)) {
+    const s = summaryOfModel(obj);
+    if (!(s instanceof Error)) return s;
+  }
+  return newsOfPatch(obj);
+}
+
+/**
+ * The watch. DSF has no cheap state endpoint (`GET /machine/model` and `/machine/status` are the
+ * whole model, about 25 KB; the standalone `rr_model?key=` is not served in SBC mode), and its
+ * socket sends only what changed. So both:
+ * - `stream` keeps the shared `WS /machine` open: news arrives at once (a halt, a heater fault,
+ *   a new job), and the open socket keeps the gateway's DSF session alive (DSF drops a session 8 s
+ *   after its last request unless a socket is open), so the poll below never meets an expired key;
+ * - `poll` reads the whole model every 10 s: the full truth, which also clears alarms (a patch
+ *   cannot). 25 KB every 10 s is nothing to an SBC; a printer's own firmware halts on heater
+ *   faults, so 10 s is enough for a record.
+ */
+export const duetWatch: WatchDecl = {
+  everyMs: WATCH_EVERY_MS,
+  poll: {
+    path: '/machine/model',
+    read(status, body) {
+      if (status < 200 || status > 299) return new Error(`GET /machine/model answered ${status}`);
+      const obj = parseObject(body, 'an answer');
+      if (obj instanceof Error) return new Error(obj.message.replace('WS /machine', 'GET /machine/model'));
+      return summaryOfModel(takeFullModel(obj).model);
+    },
+  },
+  stream: { path: '/machine', read: readModelFrame },
+};
+
+export const duetSharing: SharingHints = {
+  shareRead: duetShareRead,
+  /**
+   * DSF is ASP.NET Core (Kestrel): HTTP/1.1 connections persist (Kestrel's keep-alive timeout is
+   * two minutes), and Duet Web Control itself relies on that; a new TCP connection per poll on an
+   * SBC is the waste.
+   */
+  keepAlive: true,
+  /** Kestrel serves requests in parallel, but on an SBC (file info parses G-code files): four. */
+  maxConcurrentReads: 4,
+  streams: [duetModelStream],
+  watch: duetWatch,
+};

@@ -1,0 +1,204 @@
+import { readFileSync } from 'node:fs';
+import { describe, expect, it } from 'vitest';
+import { splitTarget } from '../../../gateway/paths';
+import { xtoolAccess } from './access';
+import { xtoolDeclaration } from './declaration';
+import { POLL_BUSY_MS, POLL_IDLE_MS } from './session';
+import {
+  classifyXtoolFrame,
+  readWorkingSta,
+  readXtoolFrame,
+  xtoolShareRead,
+  xtoolSharing,
+  xtoolStatusStream,
+  xtoolWatch,
+} from './sharing';
+
+const FIXTURES = new URL('../../../tests/fixtures/xtool/d-series/', import.meta.url);
+const fixture = (rel: string) => readFileSync(new URL(rel, FIXTURES), 'utf8');
+
+interface FrameRow {
+  frame: string;
+  alt_spellings?: string[];
+}
+const FRAMES = (JSON.parse(fixture('ws-frames.json')) as { frames: FrameRow[] }).frames;
+const allFrames = FRAMES.flatMap((f) => [f.frame, ...(f.alt_spellings ?? [])]);
+
+/** Path and query as the gateway hands them over (its canonical split). */
+function target(raw: string): { path: string; query: URLSearchParams } {
+  const t = splitTarget(raw);
+  if ('error' in t) throw new Error(`${raw}: ${t.error}`);
+  return { path: t.path, query: t.query };
+}
+const share = (raw: string) => {
+  const t = target(raw);
+  return xtoolShareRead(t.path, t.query);
+};
+
+/** Every GET the document lists (and some it does not), with the parameters the console sends. */
+const GETS = [
+  '/',
+  '/ping',
+  '/progress',
+  '/getmachinetype',
+  '/getlaserpowertype',
+  '/getlaserpowerinfo',
+  '/peripherystatus',
+  '/status',
+  '/list?dir=/',
+  '/system?action=mac',
+  '/system?action=version',
+  '/system?action=get_working_sta',
+  '/system?action=offset',
+  '/system?action=dotMode',
+  '/system?action=get_dev_name',
+  '/system?action=set_dev_name&name=x',
+  '/system?action=setLimitStopSwitch&limitStopSwitch=0',
+  '/system?action=setTiltStopSwitch&tiltStopSwitch=0',
+  '/system?action=setMovingStopSwitch&movingStopSwitch=0',
+  '/system?action=setTiltCheckThreshold&tiltCheckThreshold=15',
+  '/system?action=setMovingCheckThreshold&movingCheckThreshold=40',
+  '/system?action=setFlameAlarmMode&flameAlarmMode=3',
+  '/system?action=setFlameAlarmSensitivity&flameAlarmSensitivity=3',
+  '/system',
+  '/cnc/data?action=pause',
+  '/cnc/data?action=resume',
+  '/cnc/data?action=stop',
+  '/cmd?cmd=M18',
+  '/read?file=/tmp.gcode',
+  '/delete?file=/tmp.gcode',
+  '/updater',
+  '/framing',
+  '/net?action=connsta',
+];
+
+describe('xTool sharing: the declaration', () => {
+  it('is what the declaration gives the gateway, beside the socket port', () => {
+    expect(xtoolDeclaration.gateway?.sharing).toBe(xtoolSharing);
+    expect(xtoolDeclaration.gateway?.defaultWsPort).toBe(8081);
+    expect(xtoolSharing.keepAlive).toBe(false);
+    expect(xtoolSharing.maxConcurrentReads).toBe(2);
+  });
+});
+
+describe('xTool sharing: reads', () => {
+  it('never shares a GET that acts (every command of the access policy)', () => {
+    const commands = GETS.filter((raw) => xtoolAccess({ method: 'GET', ...target(raw) }).command);
+    expect(commands.length).toBeGreaterThanOrEqual(17);
+    for (const raw of commands) expect(share(raw), raw).toBeNull();
+  });
+
+  it('shares the status poll with the busy period, and nothing else', () => {
+    const shared = GETS.filter((raw) => share(raw) !== null);
+    expect(shared.sort()).toEqual(['/progress', '/system?action=get_working_sta']);
+    expect(share('/progress')).toBe(POLL_BUSY_MS);
+    expect(share('/system?action=get_working_sta')).toBe(POLL_BUSY_MS);
+    expect(POLL_BUSY_MS).toBeLessThan(POLL_IDLE_MS);
+  });
+
+  it('shares only the exact form the console sends', () => {
+    for (const raw of [
+      '/progress/',
+      '/PROGRESS',
+      '/progress?x=1',
+      '/system?action=GET_WORKING_STA',
+      '/system?action=get_working_sta&name=x',
+      '/system?Action=get_working_sta',
+    ])
+      expect(share(raw), raw).toBeNull();
+    // the gateway refuses a repeated parameter; were one to arrive, the firmware might read the other
+    const twice = new URLSearchParams('action=get_working_sta&action=set_dev_name');
+    expect(xtoolShareRead('/system', twice)).toBeNull();
+  });
+});
+
+describe('xTool sharing: the :8081 socket', () => {
+  it('is the root path the browser opens', () => {
+    expect(xtoolStatusStream.matches('/')).toBe(true);
+    expect(xtoolStatusStream.matches('/progress')).toBe(false);
+    expect(xtoolWatch.stream?.path).toBe('/');
+  });
+
+  it('classifies every documented frame: state frames latest and replayed, alarms events', () => {
+    expect(allFrames).toContain('WORK_STOPED');
+    for (const f of allFrames) {
+      const c = classifyXtoolFrame(`${f}\n`);
+      if (f.startsWith('err:') || f === 'ok:ERROR') expect(c, f).toEqual({ kind: 'event', replay: false });
+      else expect(c, f).toEqual({ kind: 'latest', key: 'state', replay: true });
+    }
+    expect(classifyXtoolFrame('ok:IDLE\u0000')).toEqual({ kind: 'latest', key: 'state', replay: true });
+  });
+
+  it('keeps unknown frames as events (nothing lost)', () => {
+    for (const f of ['ok:SOMETHING_NEW', '', 'garbage', '{"a":1}'])
+      expect(classifyXtoolFrame(f).kind, f).toBe('event');
+  });
+
+  it('takes nothing from a browser', () => {
+    for (const f of ['ok:IDLE', 'PING', '1', '']) expect(xtoolStatusStream.fromBrowser?.(f), f).toBeNull();
+  });
+});
+
+describe('xTool sharing: the watch', () => {
+  it('polls the working state every 10 s and keeps the socket', () => {
+    expect(xtoolWatch.everyMs).toBe(POLL_IDLE_MS);
+    const p = target(xtoolWatch.poll?.path ?? '');
+    expect(xtoolAccess({ method: 'GET', ...p })).toMatchObject({ role: 'viewer', command: false });
+    expect(xtoolShareRead(p.path, p.query)).toBe(POLL_BUSY_MS);
+  });
+
+  it('reads the working state fixture and its other values', () => {
+    expect(readWorkingSta(200, fixture('http/GET_system_action=get_working_sta.json'))).toEqual({
+      state: 'idle',
+      alarm: null,
+      job: null,
+    });
+    expect(readWorkingSta(200, '{"result":"ok","working":"1"}')).toMatchObject({ state: 'running' });
+    expect(readWorkingSta(200, '{"result":"ok","working":2}')).toMatchObject({ state: 'running' });
+    expect(readWorkingSta(200, '{"result":"ok","working":"7"}')).toMatchObject({ state: 'unknown' });
+  });
+
+  it('turns a refusal, another status and garbage into an Error, never a throw', () => {
+    for (const [status, body] of [
+      [200, fixture('http/result_fail.json')],
+      [200, '{"result":"no file"}'],
+      [200, '{"result":"ok"}'],
+      [200, '[]'],
+      [200, 'not json'],
+      [200, ''],
+      [500, '{"result":"ok","working":"0"}'],
+    ] as const)
+      expect(readWorkingSta(status, body), body).toBeInstanceOf(Error);
+  });
+
+  it('reads every documented frame: alarms in words, states as the console counts them', () => {
+    const read = (f: string) => readXtoolFrame(`${f}\n`);
+    expect(read('ok:IDLE')).toEqual({ state: 'idle' });
+    expect(read('ok:WORKING_ONLINE')).toEqual({ state: 'running' });
+    expect(read('ok:WORKING_OFFLINE')).toEqual({ state: 'running' });
+    expect(read('ok:WORKING_FRAMING')).toEqual({ state: 'running' });
+    // loaded, waiting for the button: nothing moves (README, "Activity")
+    expect(read('ok:WORKING_ONLINE_READY')).toEqual({ state: 'idle' });
+    expect(read('ok:WORKING_FRAME_READY')).toEqual({ state: 'idle' });
+    expect(read('ok:PAUSING')).toEqual({ state: 'paused' });
+    expect(read('WORK_STOPPED')).toEqual({ state: 'running' });
+    expect(read('WORK_STOPED')).toEqual({ state: 'running' });
+    expect(read('err:flameCheck')).toEqual({
+      state: 'alarm',
+      alarm: expect.stringMatching(/^FLAME DETECTED/),
+    });
+    expect(read('err:tiltCheck')).toEqual({ state: 'alarm', alarm: expect.stringMatching(/Tilt sensor/) });
+    expect(read('err:movingCheck')).toEqual({
+      state: 'alarm',
+      alarm: expect.stringMatching(/Movement sensor/),
+    });
+    expect(read('err:limitCheck')).toEqual({ state: 'alarm', alarm: expect.stringMatching(/Limit switch/) });
+    expect(read('ok:ERROR')).toEqual({ state: 'alarm', alarm: expect.stringMatching(/ok:ERROR/) });
+    for (const f of allFrames) expect(read(f), f).not.toBeNull();
+  });
+
+  it('says nothing for unknown frames and garbage', () => {
+    for (const f of ['ok:SOMETHING_NEW', '', '\u0000', 'err:unknownCheck'])
+      expect(readXtoolFrame(f), f).toBeNull();
+  });
+});

@@ -1,0 +1,157 @@
+import type {
+  FanoutStreamDecl,
+  FrameClass,
+  SharingHints,
+  WatchDecl,
+  WatchSummary,
+} from '../../fleet/contract';
+import type { Activity } from '../../fleet/types';
+import { xtoolAccess } from './access';
+import { alarmForFrame, applyFrame, INITIAL_STATE, toActivity } from './state';
+import { parseFrameText, parseXtoolError, workingStaSchema } from './wire';
+
+/**
+ * How the gateway shares one xTool D-series laser among every viewer (Node-safe, pure: the
+ * gateway and the browser import it through `declaration.ts`). The laser is an ESP32 with room
+ * for a few sockets: one status socket (:8081) for every browser, the two status polls answered
+ * once per period, at most two reads at once, a new connection per request.
+ */
+
+/** The console polls this often while a job or frame is loaded or running (session.ts POLL_BUSY_MS). */
+export const BUSY_POLL_MS = 3000;
+/** The watch polls as the console does when the laser is idle (session.ts POLL_IDLE_MS). */
+export const WATCH_EVERY_MS = 10_000;
+
+/**
+ * The status poll: `GET /system?action=get_working_sta`, then `GET /progress`, every 3 s while
+ * busy and every 10 s when idle. The window is the busy period (the shorter one): an answer is
+ * never older than a busy poll would see. Shared only in exactly the form the console sends
+ * (the ESP32 matches paths exactly; a second `action` could be read differently by the firmware
+ * than by the access policy). Nothing else is shared: the settings (`/peripherystatus`, `offset`,
+ * `dotMode`, read once a minute and again after each settings command, which must see the new
+ * value), the SD card listing, the identity reads at connect, and every GET that acts
+ * (`/cnc/data`, `/system?action=set…`, `/cmd`, `/read`, `/delete`: commands in access.ts).
+ */
+export function xtoolShareRead(path: string, query: URLSearchParams): number | null {
+  const params = [...query];
+  let window: number | null = null;
+  if (path === '/progress' && params.length === 0) window = BUSY_POLL_MS;
+  if (path === '/system' && params.length === 1 && query.get('action') === 'get_working_sta')
+    window = BUSY_POLL_MS;
+  if (window === null) return null;
+  const d = xtoolAccess({ method: 'GET', path, query });
+  return d.command || d.role !== 'viewer' ? null : window;
+}
+
+// ---------------------------------------------------------------------------------- :8081
+
+/**
+ * A frame of the status socket. The socket says nothing on connect and nothing while the state
+ * stays the same, so a browser that joins needs the last state frame: state frames (`ok:IDLE`,
+ * `ok:WORKING_*`, `ok:PAUSING`, `WORK_STOPPED`/`WORK_STOPED`) are `latest` under one key, replayed.
+ *
+ * `ok:ERROR` and `err:*Check` (flame, tilt, movement, limit) raise alarms in the browser: they
+ * are events, never dropped behind a later `ok:IDLE`. Not replayed (decision): the frames carry no
+ * time and the laser has no alarm to acknowledge, so a browser that opens the page later would
+ * raise "FLAME DETECTED — go to the laser now" as new, hours after the fact and for every viewer
+ * until the next alarm; the gateway's watch records the alarm when it happens, and a browser that
+ * was connected gets it in order. Unknown frames are events too (the browser logs them).
+ */
+export function classifyXtoolFrame(frame: string): FrameClass {
+  const f = parseFrameText(frame);
+  if (f.kind === 'state' || f.kind === 'stopped') return { kind: 'latest', key: 'state', replay: true };
+  return { kind: 'event', replay: false };
+}
+
+export const xtoolStatusStream: FanoutStreamDecl = {
+  kind: 'fanout',
+  // The browser opens `/machines/<id>/`: the root of the laser's :8081 (declaration.ts).
+  matches: (path) => path === '/',
+  // A page reload or going from the fleet to a machine page keeps the ESP32's socket.
+  graceMs: 10_000,
+  classify: classifyXtoolFrame,
+  // A read-only channel: the laser takes no frame from a client, the browser sends none.
+  fromBrowser: () => null,
+};
+
+// ---------------------------------------------------------------------------------- watch
+
+function watchState(a: Activity): WatchSummary['state'] {
+  switch (a) {
+    case 'running':
+    case 'stopping':
+      return 'running';
+    case 'paused':
+      return 'paused';
+    case 'idle':
+      return 'idle';
+    case 'alarm':
+    case 'error':
+      return 'alarm';
+    case 'offline':
+    case 'unknown':
+      return 'unknown';
+  }
+}
+
+/**
+ * `GET /system?action=get_working_sta` → the summary: "0" idle; "1" (started by the API) and "2"
+ * (started with the button, or loaded and waiting for it: the two look the same) running, as the
+ * console counts "2" with nothing else known (README, "Activity"). The answer names no job and no
+ * alarm: alarms come by the socket (`readXtoolFrame`), and this poll clears them once the laser
+ * says where it is (the D-series has no alarm state: a sensor aborts the job and the laser is idle).
+ */
+export function readWorkingSta(status: number, body: string): WatchSummary | Error {
+  if (status < 200 || status > 299) return new Error(`get_working_sta answered ${status}`);
+  let json: unknown;
+  try {
+    json = JSON.parse(body);
+  } catch {
+    return new Error(`get_working_sta: not JSON (${body.trim().slice(0, 60)})`);
+  }
+  const vendor = parseXtoolError(status, json, body);
+  if (vendor) return new Error(`get_working_sta: ${vendor.message}`);
+  const p = workingStaSchema.safeParse(json);
+  if (!p.success) return new Error('get_working_sta: no "working" in the answer');
+  const state = p.data.code === 'idle' ? 'idle' : p.data.code === 'unknown' ? 'unknown' : 'running';
+  return { state, alarm: null, job: null };
+}
+
+/**
+ * A socket frame → what it says: the state (through the console's own state machine) and, for
+ * `ok:ERROR` and `err:*Check`, the alarm in the console's words. A state frame leaves the alarm
+ * alone (the poll clears it); unknown frames say nothing.
+ */
+export function readXtoolFrame(frame: string): Partial<WatchSummary> | null {
+  const f = parseFrameText(frame);
+  if (f.kind === 'unknown') return null;
+  const state = watchState(toActivity(applyFrame(INITIAL_STATE, f).state));
+  const alarm = alarmForFrame(f, 0);
+  return alarm ? { state, alarm: alarm.message } : { state };
+}
+
+/**
+ * The watch: the socket kept open (an alarm arrives the moment the laser sends it; a flame is the
+ * reason to watch a laser at all), and the working state polled every 10 s, the console's own idle
+ * period: the socket sends nothing on connect and has no heartbeat, so only a poll tells the state
+ * and that the laser still answers. A faster poll would only load the ESP32. The poll's path
+ * carries its query (`pathAndQuery`, as `UpstreamRequest` takes it).
+ */
+export const xtoolWatch: WatchDecl = {
+  everyMs: WATCH_EVERY_MS,
+  poll: { path: '/system?action=get_working_sta', read: readWorkingSta },
+  stream: { path: '/', read: readXtoolFrame },
+};
+
+export const xtoolSharing: SharingHints = {
+  shareRead: xtoolShareRead,
+  /**
+   * The ESP32 has room for a few sockets: a kept-alive idle connection would hold one of them
+   * from the vendor app and the laser's own needs. One connection per request (README).
+   */
+  keepAlive: false,
+  /** An ESP32 with room for a few sockets; the console itself never sends it two at once. */
+  maxConcurrentReads: 2,
+  streams: [xtoolStatusStream],
+  watch: xtoolWatch,
+};
