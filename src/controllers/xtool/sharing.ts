@@ -23,21 +23,46 @@ export const BUSY_POLL_MS = 3000;
 export const WATCH_EVERY_MS = 10_000;
 
 /**
- * The status poll: `GET /system?action=get_working_sta`, then `GET /progress`, every 3 s while
- * busy and every 10 s when idle. The window is the busy period (the shorter one): an answer is
- * never older than a busy poll would see. Shared only in exactly the form the console sends
- * (the ESP32 matches paths exactly; a second `action` could be read differently by the firmware
- * than by the access policy). Nothing else is shared: the settings (`/peripherystatus`, `offset`,
- * `dotMode`, read once a minute and again after each settings command, which must see the new
- * value), the SD card listing, the identity reads at connect, and every GET that acts
- * (`/cnc/data`, `/system?action=set…`, `/cmd`, `/read`, `/delete`: commands in access.ts).
+ * Shared reads (every viewer's tab asks the same of one ESP32):
+ * - The status poll: `GET /system?action=get_working_sta`, then `GET /progress`, every 3 s. The
+ *   window is the poll period: an answer is never older than a poll would see.
+ * - The settings (`/peripherystatus`, `/system?action=offset`, `/system?action=dotMode`), read
+ *   once a minute by every tab (queries.ts SETTINGS_REFRESH_MS): one read a minute for all. A
+ *   settings command must be seen at once: the gateway drops every kept answer of a machine when
+ *   a command goes to it (gateway/upstream-http.ts), so the read after it goes to the laser.
+ * - The identity at connect (`/getmachinetype`, `/system?action=version`): a minute.
+ * Each only in exactly the form the console sends (the ESP32 matches paths exactly; a second
+ * `action` could be read differently by the firmware than by the access policy). Nothing else is
+ * shared: the SD card listing and every GET that acts (`/cnc/data`, `/system?action=set…`,
+ * `/cmd`, `/read`, `/delete`: commands in access.ts).
  */
+/** Every tab reads the settings once a minute (queries.ts SETTINGS_REFRESH_MS; not imported: React). */
+const SETTINGS_REFRESH_MS = 60_000;
+
+const SHARED_SYSTEM_ACTIONS: Readonly<Record<string, number>> = {
+  get_working_sta: BUSY_POLL_MS,
+  offset: SETTINGS_REFRESH_MS,
+  dotMode: SETTINGS_REFRESH_MS,
+  version: SETTINGS_REFRESH_MS,
+};
+const SHARED_PATHS: Readonly<Record<string, number>> = {
+  '/progress': BUSY_POLL_MS,
+  '/peripherystatus': SETTINGS_REFRESH_MS,
+  '/getmachinetype': SETTINGS_REFRESH_MS,
+};
+
 export function xtoolShareRead(path: string, query: URLSearchParams): number | null {
   const params = [...query];
   let window: number | null = null;
-  if (path === '/progress' && params.length === 0) window = BUSY_POLL_MS;
-  if (path === '/system' && params.length === 1 && query.get('action') === 'get_working_sta')
-    window = BUSY_POLL_MS;
+  if (params.length === 0) window = SHARED_PATHS[path] ?? null;
+  const action = query.get('action');
+  if (
+    path === '/system' &&
+    params.length === 1 &&
+    action !== null &&
+    Object.hasOwn(SHARED_SYSTEM_ACTIONS, action)
+  )
+    window = SHARED_SYSTEM_ACTIONS[action] ?? null;
   if (window === null) return null;
   const d = xtoolAccess({ method: 'GET', path, query });
   return d.command || d.role !== 'viewer' ? null : window;
