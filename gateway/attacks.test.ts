@@ -18,6 +18,7 @@ import {
   writeJson,
   type Running,
   type Stub,
+  selfSignedCert,
 } from './test-util';
 import type { UserRecord } from './users';
 import { bridgeSockets } from './ws-bridge';
@@ -429,35 +430,10 @@ describe('13: smaller holes', () => {
 
 describe('9: the controller certificate is pinned through the gateway', () => {
   it('an impostor with another self-signed certificate never receives the API key', async () => {
-    const { execFileSync } = await import('node:child_process');
-    const { readFileSync } = await import('node:fs');
     const https = await import('node:https');
     const t = tempDir();
     cleanups.push(t.cleanup);
-    const cert = (name: string): { key: string; cert: string } => {
-      const k = path.join(t.dir, `${name}.key`);
-      const c = path.join(t.dir, `${name}.pem`);
-      execFileSync(
-        'openssl',
-        [
-          'req',
-          '-x509',
-          '-newkey',
-          'rsa:2048',
-          '-nodes',
-          '-keyout',
-          k,
-          '-out',
-          c,
-          '-days',
-          '2',
-          '-subj',
-          `/CN=${name}`,
-        ],
-        { stdio: 'ignore' },
-      );
-      return { key: readFileSync(k, 'utf8'), cert: readFileSync(c, 'utf8') };
-    };
+    const cert = (name: string): { key: string; cert: string } => selfSignedCert(t.dir, name);
     const real = cert('real');
     const fake = cert('impostor');
     const seen: IncomingMessage['headers'][] = [];

@@ -38,6 +38,8 @@ export function rejectUpgrade(socket: Duplex, status: number, body: unknown): vo
     socket.write(
       `HTTP/1.1 ${status} ${reason[status] ?? 'Error'}\r\n` +
         'Connection: close\r\n' +
+        // The gateway's own refusal, as every one of its failures says (sendJson).
+        'X-Shopdeck-Gateway: error\r\n' +
         'Content-Type: application/json; charset=utf-8\r\n' +
         `Content-Length: ${Buffer.byteLength(text)}\r\n` +
         '\r\n' +
@@ -45,6 +47,32 @@ export function rejectUpgrade(socket: Duplex, status: number, body: unknown): vo
     );
   }
   socket.destroy();
+}
+
+/**
+ * A command's deadline as the console sends it (`X-Shopdeck-Deadline: <ms>`, the time left until
+ * the operator is told "not confirmed"). Never longer than this, whatever a page asks.
+ */
+export const MAX_COMMAND_DEADLINE_MS = 120_000;
+
+/**
+ * The deadline of a command in ms: the browser's `X-Shopdeck-Deadline` when it is a positive whole
+ * number (capped at `MAX_COMMAND_DEADLINE_MS`), else `fallback` (also capped; null: none).
+ */
+export function commandDeadlineMs(
+  value: string | string[] | undefined,
+  fallback: number | null,
+): number | null {
+  const raw = Array.isArray(value) ? value[0] : value;
+  const ms = raw !== undefined && /^\s*\d{1,12}\s*$/.test(raw) ? Number(raw) : NaN;
+  const chosen = Number.isFinite(ms) && ms > 0 ? ms : fallback;
+  return chosen === null ? null : Math.min(chosen, MAX_COMMAND_DEADLINE_MS);
+}
+
+/** "0.3 s", "5 s", "12.5 s": a duration as operators read it. */
+export function secondsWords(ms: number): string {
+  const s = Math.round(ms / 100) / 10;
+  return `${s} s`;
 }
 
 export class BodyTooLarge extends Error {

@@ -10,9 +10,11 @@ import { CertificateChanged, connectPinned, PinFileError } from './tls-pin';
 import {
   BodyTooLarge,
   clientAddress,
+  commandDeadlineMs,
   forwardRequestHeaders,
   forwardResponseHeaders,
   readBody,
+  secondsWords,
   sendJson,
 } from './http-util';
 import { redact, type MachineEntry } from './machines';
@@ -29,6 +31,79 @@ const MAX_SIM_BODY = 64 * 1024 * 1024;
 /** The watch reads status answers: a few kB; a model (Duet) some tens. */
 const WATCH_READ_MAX = 2 * 1024 * 1024;
 export const READ_METHODS = new Set(['GET', 'HEAD', 'OPTIONS']);
+
+function hasBody(req: IncomingMessage): boolean {
+  const cl = req.headers['content-length'];
+  return (cl !== undefined && cl.trim() !== '0') || req.headers['transfer-encoding'] !== undefined;
+}
+
+/** What a request's outcome says for the audit log (commands only). */
+type Done = (r: { status?: number; error?: string }) => void;
+
+/**
+ * One command on its way to a controller (issue 15): its deadline, and whether it may still be
+ * sent. A command is never delivered after the operator was told it was not confirmed:
+ *
+ * - At the deadline (`X-Shopdeck-Deadline` from the browser, capped; the gateway's timeout when
+ *   absent; none for a command whose body streams through, an upload, which keeps the idle
+ *   timeout) everything under way for it is aborted — a connection still being made or a TLS
+ *   handshake still under way is dropped before a byte of the request is written — and the
+ *   browser is answered 504 "not confirmed" (or its answer is cut, when the controller's had
+ *   begun).
+ * - A browser that leaves (its own timeout, a closed page) stops it the same way.
+ * - `sent`: the connection was made, so the request may have reached the controller. Once bytes
+ *   are written nothing can call them back: "it may or may not have reached the machine".
+ */
+class CommandWatch {
+  /** Why the command may not be sent any more (null: it may still go). */
+  stopped: 'deadline' | 'browser' | null = null;
+  sent = false;
+  private readonly aborts = new Set<() => void>();
+  private timer: ReturnType<typeof setTimeout> | null = null;
+  private readonly endsAt: number | null;
+
+  constructor(
+    /** The deadline in ms from the request's arrival; null: none. */
+    readonly ms: number | null,
+    arrivedAt: number,
+    private readonly expired: (w: CommandWatch) => void,
+  ) {
+    this.endsAt = ms === null ? null : arrivedAt + ms;
+    if (this.endsAt !== null)
+      this.timer = setTimeout(() => this.stop('deadline'), Math.max(0, this.endsAt - Date.now()));
+  }
+
+  /** Ms left until the deadline (Infinity: none). */
+  remaining(): number {
+    return this.endsAt === null ? Number.POSITIVE_INFINITY : Math.max(0, this.endsAt - Date.now());
+  }
+
+  /** Runs `abort` when the command stops (at once when it has). Returns: forget it. */
+  onAbort(abort: () => void): () => void {
+    if (this.stopped) {
+      abort();
+      return () => undefined;
+    }
+    this.aborts.add(abort);
+    return () => this.aborts.delete(abort);
+  }
+
+  stop(why: 'deadline' | 'browser'): void {
+    if (this.stopped) return;
+    this.stopped = why;
+    this.settle();
+    if (why === 'deadline') this.expired(this);
+    const aborts = [...this.aborts];
+    this.aborts.clear();
+    for (const a of aborts) a();
+  }
+
+  /** The answer was given (or the browser is gone): no deadline any more. */
+  settle(): void {
+    if (this.timer) clearTimeout(this.timer);
+    this.timer = null;
+  }
+}
 
 /**
  * A redirect to the controller itself (absolute URL or absolute path) becomes the same place
@@ -124,6 +199,7 @@ export function createHttpProxy(ctx: GatewayContext) {
     m: MachineEntry,
     rest: string,
   ): Promise<void> {
+    const arrivedAt = Date.now();
     const method = (req.method ?? 'GET').toUpperCase();
     const address = clientAddress(req);
     const t = splitTarget(rest);
@@ -204,9 +280,12 @@ export function createHttpProxy(ctx: GatewayContext) {
       sendJson(res, v.status, v.body);
       return;
     }
-    const done = (r: { status?: number; error?: string }): void => {
-      if (!isCommand) return;
-      const ok = r.status !== undefined && r.status < 400;
+    let audited = false;
+    /** A command's outcome, audited once (the first word on it counts: a deadline, a cut answer…). */
+    const done: Done = (r) => {
+      if (!isCommand || audited) return;
+      audited = true;
+      const ok = r.status !== undefined && r.status < 400 && r.error === undefined;
       record({
         ...base,
         type: 'command',
@@ -217,7 +296,59 @@ export function createHttpProxy(ctx: GatewayContext) {
       });
     };
 
-    await sendUpstream(req, res, m, method, t, forwardRequestHeaders(req.headers), body, isCommand, done);
+    let watch: CommandWatch | null = null;
+    if (isCommand) {
+      // A command whose body streams through (an upload) has no default deadline: its transfer
+      // may take long; the idle timeout applies as for reads. Any other command has one.
+      const streamed = body === null && hasBody(req);
+      const ms = commandDeadlineMs(req.headers['x-shopdeck-deadline'], streamed ? null : timeoutMs);
+      const cw = new CommandWatch(ms, arrivedAt, () => {
+        const secs = secondsWords(ms ?? 0);
+        done({
+          status: 504,
+          error: `not confirmed within ${secs}: ${
+            cw.sent
+              ? 'the request was sent; the controller did not answer in time'
+              : 'the request was not sent (the controller could not be reached in time)'
+          }`,
+        });
+        if (!res.headersSent && !res.destroyed)
+          gatewayError(
+            res,
+            504,
+            `${m.name} did not confirm ${decision.label} within ${secs}: it may or may not have reached the machine`,
+            true,
+          );
+        else res.destroy();
+      });
+      res.once('close', () => {
+        if (res.writableFinished) {
+          cw.settle();
+          return;
+        }
+        // The browser stopped waiting (its own deadline, a closed page): not sent after that.
+        done({
+          error: cw.sent
+            ? 'not confirmed: the console stopped waiting (the request was sent)'
+            : 'not sent: the console stopped waiting before the controller could be reached',
+        });
+        cw.stop('browser');
+      });
+      watch = cw;
+    }
+
+    await sendUpstream(
+      req,
+      res,
+      m,
+      method,
+      t,
+      forwardRequestHeaders(req.headers),
+      body,
+      isCommand,
+      done,
+      watch,
+    );
   }
 
   /**
@@ -234,7 +365,8 @@ export function createHttpProxy(ctx: GatewayContext) {
     headers: Record<string, string>,
     body: Buffer | null,
     isCommand: boolean,
-    done: (r: { status?: number; error?: string }) => void,
+    done: Done,
+    watch: CommandWatch | null = null,
   ): Promise<void> {
     const fam = opts.families[m.kind];
     if (patternsFor(m).length) {
@@ -255,6 +387,8 @@ export function createHttpProxy(ctx: GatewayContext) {
       done,
     );
     if (held === 'answered') return;
+    // The deadline passed (or the browser left) while the held session was being opened: not sent.
+    if (watch?.stopped) return;
     fam?.gateway?.injectSecrets?.({ method, path: t.path, headers, query }, m.secrets);
     const qs = query.toString() === before ? t.rawQuery : query.toString();
     const pathAndQuery = t.path + (qs ? `?${qs}` : '');
@@ -270,8 +404,8 @@ export function createHttpProxy(ctx: GatewayContext) {
       { machine: m, req, res, method, path: t.path, query: t.query, pathAndQuery, headers, isCommand, held },
       (sink, agent, h) =>
         m.simulated || !url
-          ? answerFromSimulator(req, sink, m, method, pathAndQuery, headers, body, done, h)
-          : forward(req, sink, m, url, method, t.path, pathAndQuery, headers, body, done, h, agent),
+          ? answerFromSimulator(req, sink, m, method, pathAndQuery, headers, body, done, h, watch)
+          : forward(req, sink, m, url, method, t.path, pathAndQuery, headers, body, done, h, agent, watch),
     );
   }
 
@@ -283,9 +417,14 @@ export function createHttpProxy(ctx: GatewayContext) {
     pathAndQuery: string,
     headers: Record<string, string>,
     buffered: Buffer | null,
-    done: (r: { status?: number; error?: string }) => void,
+    done: Done,
     held: HeldHttp | null = null,
+    watch: CommandWatch | null = null,
   ): Promise<void> {
+    if (watch?.stopped) {
+      req.resume();
+      return;
+    }
     const sim = simulatorFor(m);
     if (!sim) {
       req.resume();
@@ -295,20 +434,31 @@ export function createHttpProxy(ctx: GatewayContext) {
     }
     let body: Buffer | null = buffered;
     if (!body && method !== 'GET' && method !== 'HEAD') body = await readBody(req, MAX_SIM_BODY);
+    if (watch?.stopped) return;
+    // A simulator's request is aborted with the command (a simulator that waits may look at it).
+    const abort = new AbortController();
+    const unwatch = watch?.onAbort(() => abort.abort());
     const request = new Request(`http://${m.id}.sim${pathAndQuery}`, {
       method,
       headers,
       body: body && method !== 'GET' && method !== 'HEAD' ? new Uint8Array(body) : undefined,
+      signal: abort.signal,
     });
+    if (watch) watch.sent = true;
     let answer: Response;
     try {
       answer = await sim.fetch(request, pathAndQuery);
     } catch (e) {
+      unwatch?.();
+      // Answered already (the deadline passed, the browser left).
+      if (watch?.stopped || res.headersSent || res.destroyed) return;
       done({ error: e instanceof SimDropped ? 'connection dropped (simulated)' : String(e) });
       if (e instanceof SimDropped) res.destroy();
       else sendJson(res, 502, { error: `simulator failed: ${e instanceof Error ? e.message : String(e)}` });
       return;
     }
+    unwatch?.();
+    if (watch?.stopped || res.headersSent || res.destroyed) return;
     // Held session (held-session.ts): a read whose key expired is sent once more with a new key.
     const again = (pq?: string): void =>
       void answerFromSimulator(req, res, m, method, pq ?? pathAndQuery, headers, buffered, done);
@@ -355,9 +505,14 @@ export function createHttpProxy(ctx: GatewayContext) {
     }
   }
 
-  /** The gateway's own failure (not the controller's answer): marked so the page can tell. */
-  function gatewayError(res: ServerResponse, status: number, error: string): void {
-    sendJson(res, status, { error, gateway: true });
+  /**
+   * The gateway's own failure (not the controller's answer): marked so the page can tell
+   * (`X-Shopdeck-Gateway: error`, `gateway: true`). `notConfirmed`: a command that may or may not
+   * have reached the controller (it was written, or may have been); without it, a command's
+   * failure means it was not sent.
+   */
+  function gatewayError(res: ServerResponse, status: number, error: string, notConfirmed = false): void {
+    sendJson(res, status, { error, gateway: true, ...(notConfirmed ? { notConfirmed: true } : {}) });
   }
 
   async function forward(
@@ -370,11 +525,18 @@ export function createHttpProxy(ctx: GatewayContext) {
     pathAndQuery: string,
     headers: Record<string, string>,
     body: Buffer | null,
-    done: (r: { status?: number; error?: string }) => void,
+    done: Done,
     held: HeldHttp | null = null,
     /** For `http:` controllers (upstream-http.ts: the machine's reads may keep connections alive). */
     agent: http.Agent = httpAgent,
+    /** A command's deadline and abort (null: a read). */
+    watch: CommandWatch | null = null,
   ): Promise<void> {
+    // Stopped before it left (the deadline passed, the browser left): never sent.
+    if (watch?.stopped || res.destroyed) {
+      req.resume();
+      return;
+    }
     const isHttps = target.protocol === 'https:';
     const basePath = target.pathname.replace(/\/+$/, '');
     const forms = secretsOf.get(m.id) ?? [];
@@ -392,7 +554,8 @@ export function createHttpProxy(ctx: GatewayContext) {
           machine: m,
           url: target,
           store: pins,
-          timeoutMs,
+          // A command's deadline ends the handshake too (its own 504 comes first: a little later).
+          timeoutMs: Math.min(timeoutMs, (watch?.remaining() ?? Number.POSITIVE_INFINITY) + 100),
           onTrust: (r) =>
             record({
               type: 'tls-trust',
@@ -404,6 +567,8 @@ export function createHttpProxy(ctx: GatewayContext) {
             }),
         });
       } catch (e) {
+        // Answered already: the deadline passed, or the browser left, during the handshake.
+        if (watch?.stopped) return;
         const err = e instanceof Error ? e : new Error(String(e));
         const words = upstreamWords(m, err, false);
         upstreamFailed(m, err, false);
@@ -412,7 +577,9 @@ export function createHttpProxy(ctx: GatewayContext) {
         gatewayError(res, 502, words);
         return;
       }
-      if (res.destroyed) {
+      // The browser left, or the deadline passed, while the certificate was checked: not a byte
+      // of the request is written.
+      if (res.destroyed || watch?.stopped) {
         tlsSocket.destroy();
         return;
       }
@@ -428,6 +595,17 @@ export function createHttpProxy(ctx: GatewayContext) {
       ...(socket ? { createConnection: () => socket } : { agent }),
     });
     pending.add(upstream);
+    // A command: aborted at its deadline or when the browser leaves. Destroyed while its
+    // connection is still being made, the request is never written.
+    const unwatch = watch?.onAbort(() => upstream.destroy()) ?? (() => undefined);
+    if (watch) {
+      if (socket) watch.sent = true;
+      else
+        upstream.once('socket', (s) => {
+          if (!s.connecting) watch.sent = true;
+          else s.once('connect', () => (watch.sent = true));
+        });
+    }
     let timedOut = false;
     let finished = false;
     /** The browser went away and the gateway ended the request: not the controller's doing. */
@@ -436,17 +614,28 @@ export function createHttpProxy(ctx: GatewayContext) {
       if (finished) return;
       finished = true;
       pending.delete(upstream);
+      unwatch();
       done(r);
     };
-    upstream.setTimeout(timeoutMs, () => {
-      timedOut = true;
-      upstream.destroy(new Error(`the controller did not answer within ${timeoutMs} ms`));
-    });
+    // An idle timeout (it covers the answer's body too), except for a command with a deadline:
+    // its deadline covers everything from its arrival to the answer's last byte.
+    if (!watch || watch.ms === null)
+      upstream.setTimeout(timeoutMs, () => {
+        timedOut = true;
+        upstream.destroy(new Error(`the controller did not answer within ${timeoutMs} ms`));
+      });
+    /** A command that may have reached the controller: its failure is "not confirmed". */
+    const unconfirmed = (): boolean => watch !== null && watch.sent;
     upstream.on('error', (e: Error & { code?: string }) => {
+      // Stopped by its watch (deadline, browser gone): answered and audited there.
+      if (watch?.stopped) {
+        finish({ error: 'aborted' });
+        return;
+      }
       const words = upstreamWords(m, e, timedOut);
       if (!abandoned && !ctx.state.closed) upstreamFailed(m, e, timedOut);
-      finish({ error: words });
-      if (!res.headersSent) gatewayError(res, timedOut ? 504 : 502, words);
+      finish({ error: unconfirmed() ? `not confirmed: ${words}` : words });
+      if (!res.headersSent) gatewayError(res, timedOut ? 504 : 502, words, unconfirmed());
       else res.destroy();
     });
     res.on('close', () => {
@@ -459,7 +648,21 @@ export function createHttpProxy(ctx: GatewayContext) {
       const status = up.statusCode ?? 502;
       // Held session (held-session.ts): a read whose key expired is sent once more with a new key.
       const again = (pq?: string): void =>
-        void forward(req, res, m, target, method, path, pq ?? pathAndQuery, headers, body, done, null, agent);
+        void forward(
+          req,
+          res,
+          m,
+          target,
+          method,
+          path,
+          pq ?? pathAndQuery,
+          headers,
+          body,
+          done,
+          null,
+          agent,
+          watch,
+        );
       if (held?.retry(status, again, { request: upstream, response: up })) return;
       const given = forwardResponseHeaders(up.headers);
       for (const [k, v] of Object.entries(given)) {
@@ -474,7 +677,12 @@ export function createHttpProxy(ctx: GatewayContext) {
           up.resume();
           upstream.destroy();
           finish({ status: 502, error: 'the controller redirected to another site' });
-          gatewayError(res, 502, `${m.name} answered with a redirect to another site: refused`);
+          gatewayError(
+            res,
+            502,
+            `${m.name} answered with a redirect to another site: refused`,
+            watch !== null,
+          );
           return;
         }
         given.location = rewritten;
@@ -485,7 +693,12 @@ export function createHttpProxy(ctx: GatewayContext) {
         up.resume();
         upstream.destroy();
         finish({ status: 502, error: 'an answer encoded in a way the gateway cannot check' });
-        gatewayError(res, 502, `${m.name} sent an answer the gateway cannot check (Content-Encoding)`);
+        gatewayError(
+          res,
+          502,
+          `${m.name} sent an answer the gateway cannot check (Content-Encoding)`,
+          watch !== null,
+        );
         return;
       }
       // Every byte passes the redactor (any type, any size, decoded first); its length may change.
@@ -505,7 +718,8 @@ export function createHttpProxy(ctx: GatewayContext) {
       pipeline([up, ...stages, res], (err) => {
         if (err) {
           res.destroy();
-          finish({ status, error: `the answer was cut: ${redact(err.message, forms)}` });
+          const cut = `the answer was cut: ${redact(err.message, forms)}`;
+          finish({ status, error: watch ? `not confirmed: ${cut}` : cut });
         } else finish({ status });
       });
     });

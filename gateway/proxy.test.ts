@@ -1,8 +1,5 @@
-import { execFileSync } from 'node:child_process';
-import { readFileSync } from 'node:fs';
 import http from 'node:http';
 import type { AddressInfo } from 'node:net';
-import path from 'node:path';
 import { afterEach, describe, expect, it } from 'vitest';
 import type { AuditEntry } from './audit';
 import {
@@ -14,6 +11,7 @@ import {
   type Running,
   type Stub,
   consoleFetch,
+  selfSignedCert,
 } from './test-util';
 import type { MachineEntry } from './machines';
 
@@ -211,28 +209,8 @@ describe('proxy /machines/<id>/…', () => {
   it('reaches a controller with a self-signed HTTPS certificate', async () => {
     const t = tempDir();
     cleanups.push(t.cleanup);
-    const key = path.join(t.dir, 'key.pem');
-    const cert = path.join(t.dir, 'cert.pem');
-    execFileSync(
-      'openssl',
-      [
-        'req',
-        '-x509',
-        '-newkey',
-        'rsa:2048',
-        '-nodes',
-        '-keyout',
-        key,
-        '-out',
-        cert,
-        '-days',
-        '1',
-        '-subj',
-        '/CN=kineticcutter',
-      ],
-      { stdio: 'ignore' },
-    );
-    const s = await startStub({ key: readFileSync(key, 'utf8'), cert: readFileSync(cert, 'utf8') });
+    const { key, cert } = selfSignedCert(t.dir, 'kineticcutter');
+    const s = await startStub({ key, cert });
     cleanups.push(s.close);
     // Node's own fetch refuses it: the certificate is really self-signed.
     await expect(consoleFetch(`${s.url}/status`)).rejects.toThrow();

@@ -368,6 +368,69 @@ describe('model streams (Duet DSF)', () => {
     });
   });
 
+  it('pings a quiet controller itself: a slow one that answers stays, a silent one is dropped within 2.25 periods (issue 15)', async () => {
+    const c = await startController(() => JSON.stringify({ state: { status: 'idle' } }));
+    const everyMs = 1000;
+    const pinged: ModelStreamDecl = {
+      ...model,
+      ping: { frame: 'PING\n', everyMs, isPong: (f) => f.trim() === 'PONG' },
+    };
+    const { ws } = await gateway(c, [pinged]);
+    const a = await openWsNoFirst(ws('/machine'));
+    await a.next();
+    await until('upstream', () => c.open.size === 1);
+    const [up] = [...c.open];
+    if (!up) throw new Error('no upstream');
+    // An idle controller on a slow link: each keep-alive is answered a little more than a
+    // period later (the round trip of a link with latency). It is kept: only silence counts.
+    let answering = true;
+    let lastSent = Date.now();
+    up.on('message', (d) => {
+      if (String(d).trim() !== 'PING') return;
+      setTimeout(() => {
+        if (!answering || up.readyState !== WebSocket.OPEN) return;
+        lastSent = Date.now();
+        up.send('PONG\n');
+      }, everyMs * 1.05);
+    });
+    await sleep(everyMs * 4.5);
+    expect(c.open.size).toBe(1);
+    expect(c.opened).toBe(1);
+    expect(a.ws.readyState).toBe(WebSocket.OPEN);
+    const pings = c.received.filter((f) => f === 'PING\n').length;
+    expect(pings).toBeGreaterThanOrEqual(2);
+    expect(pings).toBeLessThanOrEqual(4); // about once a period of silence, never a storm
+    expect(a.take()).toBeUndefined(); // the controller's PONGs are the gateway's, not the browser's
+    // It falls silent: every viewer is closed (1011) 2.25 periods after its last frame.
+    const closed = new Promise<{ code: number; reason: string; at: number }>((r) =>
+      a.ws.once('close', (code, reason) => r({ code, reason: String(reason), at: Date.now() })),
+    );
+    answering = false;
+    const got = await closed;
+    expect(got.code).toBe(1011);
+    expect(got.reason).toMatch(/stopped answering/);
+    expect(got.at - lastSent).toBeGreaterThanOrEqual(everyMs * 2.25 - 20);
+    expect(got.at - lastSent).toBeLessThan(everyMs * 2.25 + 250);
+    await until('the upstream socket closed', () => c.open.size === 0);
+  }, 15_000);
+
+  it('a patch that does not apply closes every viewer with 1007 (bad data); the next one starts afresh', async () => {
+    const c = await startController(() => JSON.stringify({ state: { status: 'idle' } }));
+    const { ws } = await gateway(c, [model]);
+    const a = await openWsNoFirst(ws('/machine'));
+    await a.next();
+    await until('upstream', () => c.open.size === 1);
+    const closed = new Promise<{ code: number; reason: string }>((r) =>
+      a.ws.once('close', (code, reason) => r({ code, reason: String(reason) })),
+    );
+    c.broadcast('{"state": not json');
+    expect(await closed).toEqual({ code: 1007, reason: 'the controller sent a patch that does not apply' });
+    await until('the upstream socket closed', () => c.open.size === 0);
+    const b = await openWsNoFirst(ws('/machine'));
+    expect(JSON.parse(await b.next())).toEqual({ state: { status: 'idle' } });
+    expect(c.opened).toBe(2);
+  });
+
   it('answers the browser keep-alive itself and never forwards browser frames', async () => {
     const c = await startController(() => JSON.stringify({ state: {} }));
     const { ws } = await gateway(c, [model]);

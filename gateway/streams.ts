@@ -25,7 +25,11 @@ import type {
  * - **Model** (Duet DSF `WS /machine`): the gateway keeps the merged model, acknowledges each
  *   patch upstream at once, and gives every browser the full model first, then, each time that
  *   browser acknowledges, one patch from what it has to what is now (the controller's own patch
- *   when the browser is up to date). Its keep-alive (`PING`) is answered here.
+ *   when the browser is up to date). Its keep-alive (`PING`) is answered here; the gateway pings
+ *   upstream itself, and an upstream silent for 2.25 keep-alive periods is gone: every browser
+ *   socket is closed (1011), so the pages show the link down within the issue's 5 s. A frame
+ *   the model cannot take (not a model, a patch that does not apply) closes them with 1007: bad
+ *   data, which the pages show as such, and everyone starts again from a fresh full model.
  * - The upstream socket opens with the first viewer and closes `graceMs` after the last one left,
  *   unless something holds it (`hold()`: the gateway's watch). When the controller closes it,
  *   every browser socket of the hub is closed (1011) and reconnects to a fresh hub.
@@ -105,6 +109,17 @@ interface Viewer {
 }
 
 const CLOSED_BY_CONTROLLER = 1011;
+/** A model stream's controller sent a frame the model cannot take (1007: invalid payload data). */
+const BAD_DATA_FROM_CONTROLLER = 1007;
+
+/**
+ * A model stream's upstream is dead after this many keep-alive periods without any frame (Duet:
+ * 2 s → PING, dead at 4.5 s): within the issue's 5 s for a silent link, and above the 4 s round
+ * trip of a slow (2 s each way) link whose patches still come.
+ */
+export const UPSTREAM_DEAD_AFTER_PINGS = 2.25;
+/** How often the keep-alive rule is checked (at most). */
+export const UPSTREAM_CHECK_MS = 100;
 
 function text(data: Buffer): string {
   return data.toString('utf8');
@@ -120,6 +135,7 @@ export class StreamHub {
   private graceTimer: ReturnType<typeof setTimeout> | null = null;
   private pingTimer: ReturnType<typeof setInterval> | null = null;
   private lastHeard: number;
+  private lastPingAt = 0;
   private windowStart: number;
   private windowCount = 0;
   private pausedUntil: ReturnType<typeof setTimeout> | null = null;
@@ -150,19 +166,35 @@ export class StreamHub {
     upstream.onClose((code, reason) => this.end(CLOSED_BY_CONTROLLER, this.closeWords(code, reason)));
     if (decl.kind === 'model' && decl.ping) {
       const { frame, everyMs } = decl.ping;
-      this.pingTimer = setInterval(() => {
-        const quiet = this.now() - this.lastHeard;
-        if (quiet >= everyMs * 2) {
-          this.upstream.close(1001, 'no answer to the keep-alive');
-          this.end(CLOSED_BY_CONTROLLER, 'the controller stopped answering');
-        } else if (quiet >= everyMs) this.upstream.send(frame);
-      }, everyMs);
+      const deadMs = Math.round(everyMs * UPSTREAM_DEAD_AFTER_PINGS);
+      this.pingTimer = setInterval(
+        () => this.checkUpstream(frame, everyMs, deadMs),
+        Math.max(10, Math.min(UPSTREAM_CHECK_MS, Math.round(everyMs / 8))),
+      );
     }
     this.scheduleGrace();
   }
 
   get open(): boolean {
     return !this.ended;
+  }
+
+  /**
+   * The upstream keep-alive: `frame` after `everyMs` of silence (again every `everyMs`), and the
+   * controller is gone when nothing at all came for `deadMs`. Checked often, so a silent upstream
+   * is noticed within `deadMs` + a check (the viewers' sockets close, 1011).
+   */
+  private checkUpstream(frame: string, everyMs: number, deadMs: number): void {
+    if (this.ended) return;
+    const t = this.now();
+    const quiet = t - this.lastHeard;
+    if (quiet >= deadMs) {
+      this.upstream.close(1001, 'no answer to the keep-alive');
+      this.end(CLOSED_BY_CONTROLLER, 'the controller stopped answering');
+    } else if (quiet >= everyMs && t - this.lastPingAt >= everyMs) {
+      this.lastPingAt = t;
+      this.upstream.send(frame);
+    }
   }
 
   get viewerCount(): number {
@@ -336,7 +368,7 @@ export class StreamHub {
       if (full instanceof Error) {
         this.opts.warn?.(`the controller's first frame is not a model: ${full.message}`);
         this.upstream.close(1002, 'not a model');
-        this.end(CLOSED_BY_CONTROLLER, 'the controller sent something else than its model');
+        this.end(BAD_DATA_FROM_CONTROLLER, 'the controller sent something else than its model');
         return;
       }
       this.model = full;
@@ -350,7 +382,7 @@ export class StreamHub {
       // One bad patch: the model may now differ from the controller's. Everyone starts again.
       this.opts.warn?.(`a model patch from the controller was refused: ${r.message}`);
       this.upstream.close(1002, 'bad patch');
-      this.end(CLOSED_BY_CONTROLLER, 'the controller sent a patch that does not apply');
+      this.end(BAD_DATA_FROM_CONTROLLER, 'the controller sent a patch that does not apply');
       return;
     }
     this.model = r.model;

@@ -1,4 +1,5 @@
-import { mkdtempSync, rmSync, writeFileSync } from 'node:fs';
+import { execFileSync } from 'node:child_process';
+import { mkdtempSync, readFileSync, rmSync, writeFileSync } from 'node:fs';
 import http, { type IncomingMessage, type ServerResponse } from 'node:http';
 import https from 'node:https';
 import type { AddressInfo } from 'node:net';
@@ -12,6 +13,36 @@ import { jsonResponse, splitPath, type Simulator } from '../src/fleet/sim';
 import type { Role } from '../src/fleet/types';
 import { createGateway, type Gateway, type GatewayOptions } from './gateway';
 import type { UserRecord } from './users';
+
+/** A self-signed certificate made with openssl in `dir` (files `<name>.key`/`<name>.pem`, and their text). */
+export function selfSignedCert(
+  dir: string,
+  cn: string,
+  name = cn,
+): { keyFile: string; certFile: string; key: string; cert: string } {
+  const keyFile = path.join(dir, `${name}.key`);
+  const certFile = path.join(dir, `${name}.pem`);
+  execFileSync(
+    'openssl',
+    [
+      'req',
+      '-x509',
+      '-newkey',
+      'rsa:2048',
+      '-nodes',
+      '-keyout',
+      keyFile,
+      '-out',
+      certFile,
+      '-days',
+      '2',
+      '-subj',
+      `/CN=${cn}`,
+    ],
+    { stdio: 'ignore' },
+  );
+  return { keyFile, certFile, key: readFileSync(keyFile, 'utf8'), cert: readFileSync(certFile, 'utf8') };
+}
 
 /** Helpers for the gateway tests: temp folders, a stub controller, the gateway on a plain server. */
 

@@ -1,8 +1,9 @@
 import { http, HttpResponse, delay } from 'msw';
 import { setupServer } from 'msw/node';
-import { afterAll, afterEach, beforeAll, describe, expect, it } from 'vitest';
+import { afterAll, afterEach, beforeAll, describe, expect, it, vi } from 'vitest';
 import { z } from 'zod';
-import { LinkError } from './errors';
+import { describeError, LinkError } from './errors';
+import { controlledBody, installFakeFetch } from './fake-fetch.test-util';
 import { HttpClient } from './http';
 
 const server = setupServer();
@@ -161,5 +162,144 @@ describe('answers of the console server itself', () => {
     expect(gatewayError(refused, {})?.kind).toBe('http');
     // The controller's own 502 (no mark) is left to the family's error parser.
     expect(gatewayError(new Response('{}', { status: 502 }), {})).toBeNull();
+  });
+});
+
+describe('the whole answer (issue 15)', () => {
+  afterEach(() => {
+    vi.useRealTimers();
+    vi.unstubAllGlobals();
+  });
+
+  /** A promise's state without waiting for it. */
+  function watch<T>(p: Promise<T>): { settled: () => boolean; result: () => Promise<T> } {
+    let settled = false;
+    p.then(
+      () => (settled = true),
+      () => (settled = true),
+    );
+    return { settled: () => settled, result: () => p };
+  }
+
+  it('its timeout covers the body: headers and 20 bytes, then silence, is a timeout', async () => {
+    vi.useFakeTimers();
+    const f = installFakeFetch();
+    const c = new HttpClient({ machineId: 'm1', timeoutMs: 1000 });
+    const p = watch(caught(c.json({ path: '/progress' }, Progress)));
+    await vi.advanceTimersByTimeAsync(0);
+    const body = controlledBody();
+    f.last().answer(200, body, { 'Content-Type': 'application/json' });
+    body.push('{"progress":12.5,"w');
+    await vi.advanceTimersByTimeAsync(999);
+    expect(p.settled()).toBe(false);
+    await vi.advanceTimersByTimeAsync(2);
+    expect(p.settled()).toBe(true);
+    const e = await p.result();
+    expect(e.kind).toBe('timeout');
+    expect(e.message).toContain('/progress');
+    expect(f.last().signal.aborted).toBe(true);
+  });
+
+  it('a body cut partway is a network error (a link problem), never a protocol error', async () => {
+    vi.useFakeTimers();
+    const f = installFakeFetch();
+    const c = new HttpClient({ machineId: 'm1' });
+    const p = caught(c.json({ path: '/status_report' }, Progress));
+    await vi.advanceTimersByTimeAsync(0);
+    const body = controlledBody();
+    f.last().answer(200, body);
+    body.push('{"progress":12.5,"w');
+    body.cut();
+    const e = await p;
+    expect(e.kind).toBe('network');
+    expect(e.isLinkFailure).toBe(true);
+    expect(e.message).toMatch(/cut/);
+  });
+
+  it('the same for a binary answer (blob)', async () => {
+    vi.useFakeTimers();
+    const f = installFakeFetch();
+    const c = new HttpClient({ machineId: 'm1', timeoutMs: 1000 });
+    const p = watch(caught(c.blob({ path: '/screenshot' })));
+    await vi.advanceTimersByTimeAsync(0);
+    const body = controlledBody();
+    f.last().answer(200, body, { 'Content-Type': 'image/png' });
+    body.push('PNG-partial');
+    await vi.advanceTimersByTimeAsync(1001);
+    expect(p.settled()).toBe(true);
+    expect((await p.result()).kind).toBe('timeout');
+  });
+});
+
+describe('the gateway’s own failures (issue 15)', () => {
+  afterEach(() => {
+    vi.unstubAllGlobals();
+  });
+
+  /** A family parser that reads every 502 as its own verdict (what the Duet session once did). */
+  const verdict = (status: number): LinkError | null =>
+    status === 502 ? new LinkError('vendor', 'Incompatible DCS version (502)', { status }) : null;
+
+  it('are told apart by the header: the gateway’s words, a link failure, never the vendor’s verdict', async () => {
+    const f = installFakeFetch();
+    f.auto = (call) => {
+      call.answer(502, JSON.stringify({ error: 'Laser 1 cannot be reached on the network', gateway: true }), {
+        'X-Shopdeck-Gateway': 'error',
+        'Content-Type': 'application/json',
+      });
+      return true;
+    };
+    const c = new HttpClient({ machineId: 'm1', parseError: verdict });
+    const e = await caught(c.json({ path: '/machine/status' }, Progress));
+    expect(e.kind).toBe('network');
+    expect(e.fromGateway).toBe(true);
+    expect(e.isLinkFailure).toBe(true);
+    expect(e.message).toBe('Laser 1 cannot be reached on the network');
+    expect(describeError(e)).toBe('Laser 1 cannot be reached on the network');
+  });
+
+  it('are told apart by the body too (gateway: true on a 5xx), and a 504 "not confirmed" says so', async () => {
+    const f = installFakeFetch();
+    f.auto = (call) => {
+      call.answer(
+        504,
+        JSON.stringify({
+          error: 'Printer 1 did not confirm pause within 5 s: it may or may not have reached the machine',
+          gateway: true,
+          notConfirmed: true,
+        }),
+      );
+      return true;
+    };
+    const c = new HttpClient({ machineId: 'm1', parseError: verdict });
+    const e = await caught(c.raw({ method: 'POST', path: '/pause' }));
+    expect(e.kind).toBe('timeout');
+    expect(e.fromGateway).toBe(true);
+    expect(e.notConfirmed).toBe(true);
+    expect(e.message).toMatch(/^Printer 1 did not confirm pause within 5 s/);
+  });
+
+  it('a controller’s own 502 is still the family’s to read; a controller’s JSON error reads as words', async () => {
+    const f = installFakeFetch();
+    f.auto = (call) => {
+      if (call.url.endsWith('/a')) call.answer(502, '{"err":1}');
+      else call.answer(500, JSON.stringify({ error: 'motion controller busy', code: 7 }));
+      return true;
+    };
+    const c = new HttpClient({ machineId: 'm1', parseError: verdict });
+    const a = await caught(c.raw({ path: '/a' }));
+    expect(a.kind).toBe('vendor');
+    expect(a.fromGateway).toBe(false);
+    const b = await caught(c.raw({ path: '/b' }));
+    expect(b.kind).toBe('http');
+    expect(b.message).toBe('HTTP 500 from /b: motion controller busy');
+    expect(b.message).not.toContain('{');
+  });
+
+  it('describeError never shows a JSON dump', () => {
+    expect(describeError(new Error('{"error":"cannot reach the controller of acc-laser"}'))).toBe(
+      'cannot reach the controller of acc-laser',
+    );
+    expect(describeError(new Error('plain words'))).toBe('plain words');
   });
 });

@@ -1,5 +1,6 @@
 import type { z } from 'zod';
-import { LinkError, protocolError } from './errors';
+import { commandScope, DEADLINE_GRACE_MS } from './commands';
+import { LinkError, protocolError, wordsOf } from './errors';
 import { CONSOLE_HEADERS, machineBase } from './origin';
 
 /**
@@ -20,7 +21,10 @@ export interface RequestOptions {
   json?: unknown;
   /** Per-request timeout (ms); the client default applies otherwise. */
   timeoutMs?: number;
-  /** Set for machine commands: sent as `X-Shopdeck-Command` for the audit log. */
+  /**
+   * Set for machine commands: sent as `X-Shopdeck-Command` for the audit log, with what is left of
+   * the command's deadline (`X-Shopdeck-Deadline`) while the command runner performs it.
+   */
   commandId?: string;
   signal?: AbortSignal;
 }
@@ -112,42 +116,65 @@ export class HttpClient {
 
   /** Binary answer (images, downloads). Non-2xx answers throw like `raw`. */
   async blob(opts: RequestOptions): Promise<{ blob: Blob; headers: Headers }> {
-    const res = await this.fetchResponse(opts);
-    if (!res.ok) {
-      const text = await res.text();
-      const body = parseJsonLenient(text);
-      const own = gatewayError(res, body);
-      if (own) throw own;
-      const vendor = this.parseError?.(res.status, body === NOT_JSON ? null : body, text);
-      if (vendor) throw vendor;
-      throw new LinkError('http', `HTTP ${res.status} from ${opts.path}${text ? `: ${preview(text)}` : ''}`, {
-        status: res.status,
-      });
-    }
-    return { blob: await res.blob(), headers: res.headers };
+    const got = await this.exchange(opts, true);
+    if (!got.res.ok) throw this.failed(got.res, got.text, opts.path);
+    return { blob: got.blob ?? new Blob([]), headers: got.res.headers };
   }
 
   private async doFetch(opts: RequestOptions): Promise<RawResponse> {
-    const res = await this.fetchResponse(opts);
-    const text = await res.text();
-    if (!res.ok) {
-      const body = parseJsonLenient(text);
-      const own = gatewayError(res, body);
-      if (own) throw own;
-      const vendor = this.parseError?.(res.status, body === NOT_JSON ? null : body, text);
-      if (vendor) throw vendor;
-      throw new LinkError('http', `HTTP ${res.status} from ${opts.path}${text ? `: ${preview(text)}` : ''}`, {
-        status: res.status,
-      });
-    }
+    const { res, text } = await this.exchange(opts, false);
+    if (!res.ok) throw this.failed(res, text, opts.path);
     return { status: res.status, headers: res.headers, text };
   }
 
-  private async fetchResponse(opts: RequestOptions): Promise<Response> {
+  /** A non-2xx answer: the gateway's own failure, the family's vendor error, or an HTTP error in words. */
+  private failed(res: Response, text: string, path: string): LinkError {
+    const body = parseJsonLenient(text);
+    const own = gatewayError(res, body);
+    if (own) return own;
+    const vendor = this.parseError?.(res.status, body === NOT_JSON ? null : body, text);
+    if (vendor) return vendor;
+    return httpError(res.status, path, text);
+  }
+
+  /**
+   * One request and its whole answer, under one timeout: the body is read under the same timer
+   * and abort as the headers (a controller that sends headers and then falls silent is a
+   * timeout, not a request that never ends), and a body that breaks off is a `network` error (a
+   * cut answer: a link problem), never a protocol error.
+   *
+   * A request sent with the `commandId` of a command being performed (commands.ts) carries what is
+   * left of its deadline (`X-Shopdeck-Deadline`, the gateway aborts it then) and waits that long
+   * (and a moment for the gateway's answer); it is given up with the command and never sent once
+   * the deadline has passed. A file transfer is not held to the deadline.
+   */
+  private async exchange(
+    opts: RequestOptions,
+    binary: boolean,
+  ): Promise<{ res: Response; text: string; blob: Blob | null }> {
     // Cancelled before it left (the session stopped while it waited its turn): never sent.
     if (opts.signal?.aborted) throw new LinkError('network', `Request to ${opts.path} cancelled`);
+    const scope = opts.commandId ? commandScope(this.machineId, opts.commandId) : null;
+    const headers: Record<string, string> = { ...this.extraHeaders?.(), ...opts.headers };
+    let timeout = opts.timeoutMs ?? this.timeoutMs;
+    let endTransfer: (() => void) | null = null;
+    if (opts.commandId) headers['X-Shopdeck-Command'] = opts.commandId;
+    if (scope) {
+      if (scope.signal.aborted)
+        throw new LinkError('timeout', `${opts.path} not sent: the command was not confirmed in time`);
+      if (isTransfer(opts.body)) endTransfer = scope.transfer();
+      else {
+        const left = scope.remainingMs();
+        if (left !== null) {
+          if (left <= 0)
+            throw new LinkError('timeout', `${opts.path} not sent: the command's deadline had passed`);
+          const ms = Math.max(1, Math.ceil(left));
+          headers['X-Shopdeck-Deadline'] = String(ms);
+          timeout = Math.min(opts.timeoutMs ?? Number.POSITIVE_INFINITY, ms + DEADLINE_GRACE_MS);
+        }
+      }
+    }
     const ctrl = new AbortController();
-    const timeout = opts.timeoutMs ?? this.timeoutMs;
     let timedOut = false;
     const timer = setTimeout(() => {
       timedOut = true;
@@ -155,54 +182,105 @@ export class HttpClient {
     }, timeout);
     const onAbort = () => ctrl.abort();
     opts.signal?.addEventListener('abort', onAbort);
-    const headers: Record<string, string> = { ...this.extraHeaders?.(), ...opts.headers };
-    if (opts.commandId) headers['X-Shopdeck-Command'] = opts.commandId;
+    scope?.signal.addEventListener('abort', onAbort);
     let body: BodyInit | null | undefined = opts.body;
     if (opts.json !== undefined) {
       body = JSON.stringify(opts.json);
       headers['Content-Type'] = 'application/json';
     }
+    const secs = `${Math.round(timeout / 100) / 10} s`;
+    /** Why the exchange ended without a whole answer. */
+    const failure = (e: unknown, phase: 'request' | 'body'): LinkError => {
+      if (timedOut)
+        return new LinkError(
+          'timeout',
+          phase === 'request'
+            ? `No answer from ${opts.path} within ${secs}`
+            : `The answer from ${opts.path} did not come whole within ${secs}`,
+        );
+      if (opts.signal?.aborted) return new LinkError('aborted', 'Request cancelled');
+      if (scope?.signal.aborted)
+        return new LinkError('timeout', `No confirmation from ${opts.path} in time: given up`);
+      const why = e instanceof Error ? e.message : String(e);
+      return phase === 'request'
+        ? new LinkError('network', connectionLost(why))
+        : new LinkError('network', `The answer from ${opts.path} was cut (${why})`);
+    };
     this.inFlight++;
     this.maxInFlight = Math.max(this.maxInFlight, this.inFlight);
     try {
-      return await globalThis.fetch(this.url(opts.path, opts.query), {
-        method: opts.method ?? 'GET',
-        headers: { ...headers, ...CONSOLE_HEADERS },
-        body: body ?? null,
-        signal: ctrl.signal,
-        credentials: 'same-origin',
-      });
-    } catch (e) {
-      if (timedOut) throw new LinkError('timeout', `No answer from ${opts.path} within ${timeout / 1000} s`);
-      if (opts.signal?.aborted) throw new LinkError('aborted', 'Request cancelled');
-      throw new LinkError(
-        'network',
-        `Cannot reach the controller (${e instanceof Error ? e.message : String(e)})`,
-      );
+      let res: Response;
+      try {
+        res = await globalThis.fetch(this.url(opts.path, opts.query), {
+          method: opts.method ?? 'GET',
+          headers: { ...headers, ...CONSOLE_HEADERS },
+          body: body ?? null,
+          signal: ctrl.signal,
+          credentials: 'same-origin',
+        });
+      } catch (e) {
+        throw failure(e, 'request');
+      }
+      try {
+        if (binary && res.ok) return { res, text: '', blob: await res.blob() };
+        return { res, text: await res.text(), blob: null };
+      } catch (e) {
+        throw failure(e, 'body');
+      }
     } finally {
       this.inFlight--;
       clearTimeout(timer);
       opts.signal?.removeEventListener('abort', onAbort);
+      scope?.signal.removeEventListener('abort', onAbort);
+      endTransfer?.();
     }
   }
 }
 
 export const NOT_JSON: unique symbol = Symbol('not-json');
 
+/** A request body that is a file transfer (a file, a form, bytes), not a command's few words. */
+function isTransfer(body: BodyInit | null | undefined): boolean {
+  if (body === null || body === undefined || typeof body === 'string') return false;
+  if (typeof URLSearchParams !== 'undefined' && body instanceof URLSearchParams) return false;
+  return true;
+}
+
 /**
- * The console's own server marks its answers (`X-Shopdeck-Gateway: error`): it could not reach the
- * controller, or refused the request. Such an answer is never read as the controller's: no vendor
- * error code, no model verdict; its words are shown as they are.
+ * The console's own server marks its answers (`X-Shopdeck-Gateway: error`; a 5xx whose JSON body
+ * says `gateway: true` is read the same way): it could not reach the controller, timed out, or
+ * refused the request. Such an answer is never read as the controller's: no vendor error code, no
+ * model or protocol verdict; its words are shown as they are. A 504 is a timeout; other 5xx a
+ * network failure (a link problem); 4xx a refusal (`http`). `notConfirmed`: a command that may or
+ * may not have reached the machine.
  */
 export function gatewayError(res: Response, body: unknown): LinkError | null {
-  if (res.headers.get('x-shopdeck-gateway') !== 'error') return null;
+  return gatewayFailure(res.status, res.headers, body);
+}
+
+function gatewayFailure(status: number, headers: Headers, body: unknown): LinkError | null {
+  const rec =
+    typeof body === 'object' && body !== null && !Array.isArray(body)
+      ? (body as Record<string, unknown>)
+      : null;
+  const marked = headers.get('x-shopdeck-gateway') === 'error';
+  if (!marked && !(rec?.gateway === true && status >= 500)) return null;
+  const said = rec && typeof rec.error === 'string' ? rec.error.trim() : '';
+  const words = said || `the console server answered HTTP ${status}`;
+  const kind = status === 504 ? 'timeout' : status >= 500 ? 'network' : 'http';
+  return new LinkError(kind, words.slice(0, 300), {
+    status,
+    fromGateway: true,
+    notConfirmed: rec?.notConfirmed === true,
+  });
+}
+
+/** A controller's HTTP error in words: its own message when its body has one, never a JSON dump. */
+function httpError(status: number, path: string, text: string): LinkError {
   const words =
-    typeof body === 'object' && body !== null && typeof (body as { error?: unknown }).error === 'string'
-      ? (body as { error: string }).error
-      : `the console server answered HTTP ${res.status}`;
-  return new LinkError(res.status >= 500 ? 'network' : 'http', words.slice(0, 300), {
-    status: res.status,
-    gateway: true,
+    wordsOf(text) ?? (text.trim().startsWith('{') || text.trim().startsWith('[') ? '' : preview(text));
+  return new LinkError('http', `HTTP ${status} from ${path}${words ? `: ${preview(words)}` : ''}`, {
+    status,
   });
 }
 
@@ -228,7 +306,9 @@ export interface UploadProgress {
 
 /**
  * Upload with progress events (fetch has none for request bodies). Uses XMLHttpRequest from
- * `globalThis` at call time so msw's interceptors see it.
+ * `globalThis` at call time so msw's interceptors see it. An upload sent for a command
+ * (`X-Shopdeck-Command`) is a transfer: the command's deadline waits while it runs (its own
+ * timeout applies). The gateway's own failures are told apart as in `HttpClient`.
  */
 export function uploadWithProgress(opts: {
   method: 'POST' | 'PUT';
@@ -239,7 +319,19 @@ export function uploadWithProgress(opts: {
   signal?: AbortSignal;
   timeoutMs?: number;
 }): Promise<RawResponse> {
-  return new Promise((resolve, reject) => {
+  const commandId = Object.entries(opts.headers ?? {}).find(
+    ([k]) => k.toLowerCase() === 'x-shopdeck-command',
+  )?.[1];
+  const machine = /\/machines\/([^/?#]+)/.exec(opts.url)?.[1];
+  let machineId: string | null = null;
+  try {
+    machineId = machine ? decodeURIComponent(machine) : null;
+  } catch {
+    machineId = null;
+  }
+  const scope = commandId && machineId ? commandScope(machineId, commandId) : null;
+  const endTransfer = scope?.transfer() ?? (() => undefined);
+  const sent = new Promise<RawResponse>((resolve, reject) => {
     const Xhr = globalThis.XMLHttpRequest;
     const xhr = new Xhr();
     xhr.open(opts.method, opts.url);
@@ -259,13 +351,8 @@ export function uploadWithProgress(opts: {
       if (xhr.status >= 200 && xhr.status < 300) resolve(res);
       else
         reject(
-          new LinkError(
-            'http',
-            `HTTP ${xhr.status} from upload${xhr.responseText ? `: ${preview(xhr.responseText)}` : ''}`,
-            {
-              status: xhr.status,
-            },
-          ),
+          gatewayFailure(xhr.status, headers, parseJsonLenient(xhr.responseText)) ??
+            httpError(xhr.status, 'upload', xhr.responseText),
         );
     };
     xhr.onerror = () => reject(new LinkError('network', 'Upload failed: cannot reach the controller'));
@@ -274,4 +361,14 @@ export function uploadWithProgress(opts: {
     opts.signal?.addEventListener('abort', () => xhr.abort());
     xhr.send(opts.body);
   });
+  return sent.finally(endTransfer);
+}
+
+/**
+ * The words for a request that got no answer at all: the page could not reach the console server,
+ * or the connection broke (the console server answers for the controller itself when it cannot
+ * reach it: those words come from it). The browser's own text ("Failed to fetch") only in brackets.
+ */
+export function connectionLost(why: string): string {
+  return `No answer: the connection to the console server broke${why ? ` (${why})` : ''}`;
 }

@@ -1,7 +1,8 @@
 // @vitest-environment happy-dom
 import { act, cleanup, fireEvent, render, screen } from '@testing-library/react';
-import { afterEach, describe, expect, it } from 'vitest';
-import type { CommandDecl } from './commands';
+import { afterEach, describe, expect, it, vi } from 'vitest';
+import { DEADLINE_GRACE_MS, type CommandDecl } from './commands';
+import { LinkError } from './errors';
 import { createContext } from './fleet';
 import { alwaysVisible } from './link';
 import { CommandButton } from './react';
@@ -59,5 +60,51 @@ describe('CommandButton', () => {
     });
     expect(t.sent).toEqual(['start']);
     expect(screen.queryByTestId('confirm-dialog')).toBeNull();
+  });
+
+  it('tells "not confirmed" apart from a failure: a silent controller past the deadline, then a refusal', async () => {
+    vi.useFakeTimers();
+    try {
+      const t = setup();
+      let answer: 'silent' | 'refuse' = 'silent';
+      const pause: CommandDecl = {
+        id: 'test.pause',
+        label: 'Pause',
+        hazard: 'motion',
+        role: 'operator',
+        deadlineMs: 2000,
+        perform: () =>
+          answer === 'silent'
+            ? new Promise<string>(() => undefined)
+            : Promise.reject(new LinkError('vendor', 'Busy: cannot pause now', { status: 409 })),
+      };
+      t.ctx.snapshot.setState({ link: 'online', activity: 'running', updatedAt: Date.now() });
+      render(
+        <CommandButton runner={t.ctx.commands} snapshot={t.ctx.snapshot} command={pause} args={undefined} />,
+      );
+      await act(async () => {
+        fireEvent.click(screen.getByTestId('cmd-test.pause'));
+        await vi.advanceTimersByTimeAsync(2000 + DEADLINE_GRACE_MS);
+      });
+      const unsure = screen.getByTestId('cmd-error-test.pause');
+      expect(unsure.textContent).toMatch(/not confirmed: it may or may not have reached the machine/);
+      expect(unsure.getAttribute('data-not-confirmed')).toBe('true');
+      expect(screen.getByTestId('cmd-test.pause').getAttribute('title')).toMatch(
+        /^Last attempt not confirmed/,
+      );
+
+      answer = 'refuse';
+      t.ctx.snapshot.setState({ updatedAt: Date.now() });
+      await act(async () => {
+        fireEvent.click(screen.getByTestId('cmd-test.pause'));
+        await vi.advanceTimersByTimeAsync(0);
+      });
+      const failed = screen.getByTestId('cmd-error-test.pause');
+      expect(failed.textContent).toBe('Busy: cannot pause now');
+      expect(failed.getAttribute('data-not-confirmed')).toBeNull();
+      expect(screen.getByTestId('cmd-test.pause').getAttribute('title')).toMatch(/^Last attempt failed/);
+    } finally {
+      vi.useRealTimers();
+    }
   });
 });

@@ -3,7 +3,7 @@ import { useStore, type StoreApi } from 'zustand';
 import { useShallow } from 'zustand/react/shallow';
 import { Button, Dialog, ScrollRegion, downloadText, formatTime } from '../ui';
 import { authStore } from './auth';
-import { confirmationText, type CommandDecl, type CommandRunner } from './commands';
+import { CommandNotConfirmed, confirmationText, type CommandDecl, type CommandRunner } from './commands';
 import type { SessionContext } from './contract';
 import { useBlockedReason } from './kernel/commands';
 import type { LogEntry, MachineLog } from './log';
@@ -72,6 +72,8 @@ export function CommandButton<A>(props: {
   const last = useStore(runner.state, (s) => s.last[command.id]);
   const [confirmStep, setConfirmStep] = useState(0);
   const [error, setError] = useState<string | null>(null);
+  /** The last error leaves it open whether the command reached the machine (not a failure). */
+  const [unsure, setUnsure] = useState(false);
   const allowed = roleAtLeast(role, command.role);
   // Follows the runner, the snapshot and every store the command's availability reads.
   const reason = useBlockedReason(runner, props.snapshot, command);
@@ -80,11 +82,13 @@ export function CommandButton<A>(props: {
   const send = useCallback(async () => {
     setConfirmStep(0);
     setError(null);
+    setUnsure(false);
     try {
       const r = await runner.run(command, args);
       props.onDone?.(r);
     } catch (e) {
       const msg = e instanceof Error ? e.message : String(e);
+      setUnsure(e instanceof CommandNotConfirmed);
       setError(msg);
       props.onError?.(msg);
     }
@@ -95,13 +99,18 @@ export function CommandButton<A>(props: {
   const onClick = () => {
     if (reason) {
       // Tablets have no hover: a tap on an unavailable command says why, on screen.
+      setUnsure(false);
       setError(`Not available: ${reason}`);
       return;
     }
     if (confirmText) setConfirmStep(1);
     else void send();
   };
-  const title = reason ?? (last && !last.ok ? `Last attempt failed: ${last.message}` : command.label);
+  const title =
+    reason ??
+    (last && !last.ok
+      ? `${last.notConfirmed ? 'Last attempt not confirmed' : 'Last attempt failed'}: ${last.message}`
+      : command.label);
   // Stop controls are marked: nothing may focus one by itself (a stray Enter would send it).
   const stop = command.hazard === 'stop' || undefined;
   return (
@@ -128,8 +137,9 @@ export function CommandButton<A>(props: {
         <span
           className="ui-muted"
           role="alert"
-          style={{ color: 'var(--bad)' }}
+          style={{ color: unsure ? 'var(--warn)' : 'var(--bad)' }}
           data-testid={`cmd-error-${command.id}`}
+          data-not-confirmed={unsure || undefined}
         >
           {error}
         </span>

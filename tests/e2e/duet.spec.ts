@@ -120,7 +120,7 @@ test.describe('Duet (DSF)', () => {
 
     // The DSF service goes away (socket close 1011), then comes back.
     await simControl(page, 'dcs-down');
-    await expect(page.getByTestId('link-problem')).toContainText('DSF) is down');
+    await expect(page.getByTestId('link-problem')).toContainText('(DSF) or the link to it is down');
     await expect(page.getByTestId('machine-link')).toHaveText('Online', { timeout: 30_000 });
 
     await tab(page, 'Console');

@@ -16,6 +16,7 @@ import {
   type ObjectModel,
   type ParsedFileInfo,
 } from './wire';
+import { fromGateway, gatewayBodyError } from '../../fleet/faults';
 
 /**
  * Typed client of the DSF REST API (`duet-dsf-rest-api.txt`), one method per endpoint, on the
@@ -30,9 +31,15 @@ import {
  * percent-encoded segment, as Duet Web Control does (`encodeURIComponent(filename)`).
  */
 
-/** DSF answers errors as plain text (an exception message) or nothing. */
-export function parseDuetError(status: number, _body: unknown, text: string): LinkError | null {
+/**
+ * DSF answers errors as plain text (an exception message) or nothing. The console server's own
+ * failure (`{"error","gateway":true}`: it could not reach the Duet) is never read as DSF's: its 502
+ * is not "Incompatible DCS version", its 401/403 not a session that expired.
+ */
+export function parseDuetError(status: number, body: unknown, text: string): LinkError | null {
   if (status < 400) return null;
+  const own = gatewayBodyError(status, body);
+  if (own) return own;
   const message = text.trim();
   if (status === 401 || status === 403) {
     return new LinkError(
@@ -61,8 +68,9 @@ export function parseDuetError(status: number, _body: unknown, text: string): Li
   return null;
 }
 
+/** DSF itself refused the session (401/403); the console server's own refusal is not DSF's. */
 export function isAuthError(e: unknown): boolean {
-  return e instanceof LinkError && (e.status === 401 || e.status === 403);
+  return e instanceof LinkError && (e.status === 401 || e.status === 403) && !fromGateway(e);
 }
 
 export function encodePath(path: string): string {

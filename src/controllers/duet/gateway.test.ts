@@ -123,6 +123,22 @@ describe('DuetSession through the gateway (the gateway holds the DSF session)', 
     expect(session.client.sessionKey).toBeNull();
   });
 
+  it('the configured password is refused, then accepted again: the page comes back by itself (issue 15)', async () => {
+    const { sim, session, ctx } = await rig('sim-pass-35', 'sim-pass-35');
+    session.start();
+    await until(() => ctx.snapshot.getState().link === 'online');
+    // Someone changes the Duet's password: the gateway's session goes, its renewal is refused.
+    sim().password = 'changed-on-the-duet';
+    sim().expireSessions();
+    sim().closeSockets(4000, 'simulated socket close');
+    await until(() => ctx.snapshot.getState().link === 'needs-login', 20_000);
+    expect(ctx.snapshot.getState().problem?.message).toMatch(/machines file/);
+    expect(ctx.snapshot.getState().retryAt).not.toBeNull();
+    // …and changes it back: no reload, no typed password.
+    sim().password = 'sim-pass-35';
+    await until(() => ctx.snapshot.getState().link === 'online', 20_000);
+  }, 45_000);
+
   it('without sockets it polls through the gateway (no key needed to know it is connected)', async () => {
     const { sim, session, ctx } = await rig('sim-pass-34', 'sim-pass-34');
     const previous = session.client.connected;

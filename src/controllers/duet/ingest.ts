@@ -19,6 +19,11 @@ export interface IngestHost {
   store: StoreApi<DuetState>;
   /** A valid model arrived (the session's silent re-login may be tried again). */
   accepted(): void;
+  /**
+   * A socket frame was dropped (unreadable, or a patch refused): the model may now differ from
+   * the machine's, which is read whole again (the session decides when).
+   */
+  resync(): void;
 }
 
 export class ModelIngest {
@@ -30,7 +35,10 @@ export class ModelIngest {
 
   constructor(private readonly h: IngestHost) {}
 
-  /** A socket frame: its object, `pong`, or null when it was no object (reported). */
+  /**
+   * A socket frame: its object, `pong`, or null when it was no object (shown as a protocol error
+   * and dropped; the model is read again).
+   */
   parse(data: string): JsonObject | 'pong' | null {
     const text = data.trim();
     if (text === 'PONG') return 'pong';
@@ -38,7 +46,7 @@ export class ModelIngest {
     try {
       parsed = JSON.parse(text);
     } catch {
-      this.h.tracker.fail(
+      this.dropped(
         new LinkError('protocol', `WS /machine: a frame that is not JSON (${text.slice(0, 60)})`, {
           path: '(root)',
         }),
@@ -46,9 +54,7 @@ export class ModelIngest {
       return null;
     }
     if (isObject(parsed)) return parsed;
-    this.h.tracker.fail(
-      new LinkError('protocol', 'WS /machine: a frame that is not an object', { path: '(root)' }),
-    );
+    this.dropped(new LinkError('protocol', 'WS /machine: a frame that is not an object', { path: '(root)' }));
     return null;
   }
 
@@ -56,7 +62,18 @@ export class ModelIngest {
   frame(frame: JsonObject, full: boolean): void {
     const r = full ? this.model.full(frame) : this.model.patch(frame);
     for (const m of r.messages) this.logMessage(m);
-    this.accept(r);
+    if (!r.ok && r.dropped) this.dropped(r.error);
+    else this.accept(r);
+  }
+
+  /** A frame that was dropped: the error on screen and in the log, and the model read again. */
+  private dropped(e: LinkError): void {
+    this.h.tracker.fail(
+      new LinkError('protocol', `${e.message} (dropped; the object model is read again)`, {
+        path: e.path ?? '(root)',
+      }),
+    );
+    this.h.resync();
   }
 
   /** The socket delivers again: polled messages are forgotten. */

@@ -1,6 +1,6 @@
-import { protocolError, type LinkError } from '../../fleet/errors';
+import { LinkError, protocolError } from '../../fleet/errors';
 import { replaceEqualDeep } from '../../fleet/kernel';
-import { applyPatch, takeFullModel, type Json, type JsonObject } from './patch';
+import { applyPatch, isUnsafeKey, takeFullModel, type Json, type JsonObject } from './patch';
 import { objectModelSchema, type ObjectModel } from './wire';
 
 /**
@@ -10,10 +10,22 @@ import { objectModelSchema, type ObjectModel } from './wire';
  * a touched part every deep-equal piece keeps its previous object too. A panel that selects an
  * unchanged part (the board, the volumes) therefore sees the same reference on every frame and
  * does not re-render, and a 24 KB model is no longer re-parsed 4 times a second.
+ *
+ * A patch that cannot be applied (nested beyond `MAX_DEPTH`) or that would make a valid model
+ * invalid is dropped: the model stays the last valid one, and the update says `dropped` (the
+ * model may now differ from the machine's: the session reads it whole again). Over a model that is
+ * already invalid, patches merge as they come (the machine may be correcting it).
  */
 
 export type ModelUpdate =
-  { ok: true; model: ObjectModel; messages: Json[] } | { ok: false; error: LinkError; messages: Json[] };
+  | { ok: true; model: ObjectModel; messages: Json[] }
+  | { ok: false; error: LinkError; messages: Json[]; dropped: boolean };
+
+const WHERE = 'WS /machine (object model)';
+
+function refusedError(why: string): LinkError {
+  return new LinkError('protocol', `Unexpected answer from ${WHERE}: ${why}`, { path: '(root)' });
+}
 
 type Shape = typeof objectModelSchema.shape;
 type Part = keyof Shape;
@@ -41,6 +53,10 @@ export class DuetModel {
   /** A full model: the first frame of a socket, or `GET /machine/model`. */
   full(frame: JsonObject): ModelUpdate {
     const r = takeFullModel(frame);
+    if (r.refused !== null) {
+      this.reset();
+      return { ok: false, error: refusedError(r.refused), messages: [], dropped: true };
+    }
     this.raw = r.model;
     return this.validate(null, r.messages);
   }
@@ -49,9 +65,16 @@ export class DuetModel {
   patch(frame: JsonObject): ModelUpdate {
     if (!this.raw) return this.full(frame);
     const r = applyPatch(this.raw, frame);
+    if (r.refused !== null) return { ok: false, error: refusedError(r.refused), messages: [], dropped: true };
+    const before = { raw: this.raw, parsed: this.parsed };
     this.raw = r.model;
-    const touched = Object.keys(frame).filter((k) => k !== 'messages');
-    return this.validate(touched, r.messages);
+    const touched = Object.keys(frame).filter((k) => k !== 'messages' && !isUnsafeKey(k));
+    const u = this.validate(touched, r.messages);
+    if (u.ok || before.parsed === null) return u;
+    // It would break a valid model: dropped, the last valid model stays.
+    this.raw = before.raw;
+    this.parsed = before.parsed;
+    return { ...u, dropped: true };
   }
 
   /**
@@ -66,7 +89,7 @@ export class DuetModel {
     for (const key of touched) {
       if (!isPart(key)) {
         // An unknown part passes through as it is (the schema is loose).
-        if (key in raw) next[key] = raw[key];
+        if (Object.hasOwn(raw, key)) next[key] = raw[key];
         else delete next[key];
         continue;
       }
@@ -84,7 +107,7 @@ export class DuetModel {
     const p = objectModelSchema.safeParse(raw);
     if (!p.success) {
       this.parsed = null;
-      return { ok: false, error: protocolError('WS /machine (object model)', p.error), messages };
+      return { ok: false, error: protocolError(WHERE, p.error), messages, dropped: false };
     }
     const model = prev ? replaceEqualDeep(prev, p.data) : p.data;
     this.parsed = model;

@@ -6,6 +6,8 @@ import {
   patchBetween,
   isObject,
   jsonEqual,
+  MAX_DEPTH,
+  nestsDeeper,
   takeFullModel,
   type Json,
   type JsonObject,
@@ -594,5 +596,51 @@ describe('diffModel by hand', () => {
     const to = JSON.parse('{"constructor":2,"toString":{"a":1},"valueOf":3}') as JsonObject;
     expect(diffModel(from, to)).toEqual({ constructor: 2, valueOf: 3 });
     expect(diffModel({}, { constructor: { a: 1 } })).toEqual({ constructor: { a: 1 } });
+  });
+});
+
+describe('applyPatch against hostile frames (issue 15)', () => {
+  it('refuses a frame nested deeper than MAX_DEPTH whole, and takes one just within it', () => {
+    const from = base();
+    const nest = (depth: number): string => `${'{"a":'.repeat(depth)}1${'}'.repeat(depth)}`;
+    for (const depth of [MAX_DEPTH, 20_000]) {
+      const patch = JSON.parse(`{"plugins":{"p":${nest(depth - 2)}}}`) as JsonObject;
+      const r = applyPatch(from, patch);
+      if (depth === MAX_DEPTH) {
+        expect(r.refused).toBeNull();
+        expect(nestsDeeper(r.model, MAX_DEPTH)).toBe(false);
+      } else {
+        expect(r.refused).toMatch(/nested deeper/);
+        expect(r.model).toBe(from);
+        expect(r.messages).toEqual([]);
+      }
+    }
+    const arrays = JSON.parse(`{"heat":${'['.repeat(20_000)}${']'.repeat(20_000)}}`) as JsonObject;
+    expect(applyPatch(from, arrays).refused).toMatch(/nested deeper/);
+    expect(takeFullModel(arrays).refused).toMatch(/nested deeper/);
+  });
+
+  it('never merges __proto__, constructor or prototype, at any depth, in objects or array items', () => {
+    const patch = JSON.parse(
+      '{"__proto__":{"polluted":1},"constructor":{"prototype":{"x":1}},"prototype":1,' +
+        '"heat":{"__proto__":{"a":1},"heaters":[{"__proto__":{"b":1},"current":5}]},' +
+        '"plugins":{"__proto__":null,"P":{"constructor":2,"id":"P"}}}',
+    ) as JsonObject;
+    const { model } = applyPatch(base(), patch);
+    const heat = model['heat'] as JsonObject;
+    const heater = (heat['heaters'] as JsonObject[])[0] as JsonObject;
+    for (const o of [model, heat, heater, (model['plugins'] as JsonObject)['P'] as JsonObject]) {
+      expect(Object.getPrototypeOf(o)).toBe(Object.prototype);
+      for (const k of ['__proto__', 'constructor', 'prototype']) expect(Object.hasOwn(o, k), k).toBe(false);
+    }
+    expect(heater['current']).toBe(5);
+    expect(({} as Record<string, unknown>)['polluted']).toBeUndefined();
+  });
+
+  it('diffModel never turns a key into a prototype either', () => {
+    const to = JSON.parse('{"a":{"__proto__":{"x":1}}}') as JsonObject;
+    const d = diffModel({ a: { y: 1 } }, to) as JsonObject;
+    expect(Object.getPrototypeOf(d['a'])).toBe(Object.prototype);
+    expect(JSON.stringify(d)).toBe('{"a":{"__proto__":{"x":1},"y":null}}');
   });
 });

@@ -14,6 +14,11 @@
  * — `move.kinematics` (discriminated by `name`) and `sensors.filamentMonitors[]` (by `type`). DSF
  * then builds a fresh object of the new class, so keys of the old type disappear; we do the same
  * by replacing instead of merging when the discriminator in the patch differs.
+ *
+ * Every byte is untrusted (issue 15): a frame nested deeper than `MAX_DEPTH` is refused whole
+ * (checked without recursion, before anything is merged), and the keys `__proto__`, `constructor`
+ * and `prototype` are never merged (DSF's model has none; an assigned `__proto__` would become a
+ * prototype).
  */
 
 export type Json = null | boolean | number | string | Json[] | JsonObject;
@@ -26,9 +31,36 @@ export function isObject(v: unknown): v is JsonObject {
 }
 
 export interface PatchResult {
+  /** The merged model; when `refused`, the model as it was. */
   model: JsonObject;
   /** `messages` entries carried by the patch, in order (raw: validated by the caller). */
   messages: Json[];
+  /** Why the frame was refused whole (nothing merged), or null. */
+  refused: string | null;
+}
+
+/** Nesting a frame may have (DSF's models nest about 6 deep; plugin data a little more). */
+export const MAX_DEPTH = 64;
+
+/** Keys never merged: an assignment of `__proto__` changes a prototype; the others are no model's. */
+const UNSAFE_KEYS: ReadonlySet<string> = new Set(['__proto__', 'constructor', 'prototype']);
+
+export function isUnsafeKey(key: string): boolean {
+  return UNSAFE_KEYS.has(key);
+}
+
+/** Whether `v` nests deeper than `limit` (iterative: a payload deeper than the stack is fine). */
+export function nestsDeeper(v: Json, limit: number): boolean {
+  const stack: Array<{ v: Json; d: number }> = [{ v, d: 0 }];
+  for (let item = stack.pop(); item; item = stack.pop()) {
+    const x = item.v;
+    if (typeof x !== 'object' || x === null) continue;
+    const d = item.d + 1;
+    if (d > limit) return true;
+    if (Array.isArray(x)) for (const c of x) stack.push({ v: c, d });
+    else for (const k of Object.keys(x)) stack.push({ v: x[k] as Json, d });
+  }
+  return false;
 }
 
 /** Discriminators of items whose type may change (see the header). Keyed by dotted path ('*' = any index). */
@@ -37,18 +69,24 @@ const DISCRIMINATORS: Record<string, string> = {
   'sensors.filamentMonitors.*': 'type',
 };
 
+function discriminator(path: string): string | undefined {
+  return Object.hasOwn(DISCRIMINATORS, path) ? DISCRIMINATORS[path] : undefined;
+}
+
 /** Keys (by dotted path) that are dictionaries where `null` deletes the key. */
 const NULL_DELETES = new Set(['plugins']);
 
 /** Apply one patch to a model. Pure: neither argument is modified. */
 export function applyPatch(model: JsonObject, patch: JsonObject): PatchResult {
+  if (nestsDeeper(patch, MAX_DEPTH))
+    return { model, messages: [], refused: `a frame nested deeper than ${MAX_DEPTH} levels` };
   const messages: Json[] = [];
-  const { messages: incoming, ...rest } = patch;
+  const incoming = Object.hasOwn(patch, 'messages') ? patch['messages'] : undefined;
   if (Array.isArray(incoming)) messages.push(...incoming);
-  const merged = mergeObject(model, rest, '');
+  const merged = mergeObject(model, patch, '');
   // The model never keeps messages: they were events.
-  if ('messages' in merged || 'messages' in patch) merged['messages'] = [];
-  return { model: merged, messages };
+  if (Object.hasOwn(merged, 'messages') || Object.hasOwn(patch, 'messages')) merged['messages'] = [];
+  return { model: merged, messages, refused: null };
 }
 
 /** A full model (the first frame): the same message extraction, nothing merged. */
@@ -60,13 +98,14 @@ function mergeObject(target: JsonObject, patch: JsonObject, path: string): JsonO
   const out: JsonObject = { ...target };
   const deletes = NULL_DELETES.has(path);
   for (const [key, value] of Object.entries(patch)) {
+    if (UNSAFE_KEYS.has(key) || (path === '' && key === 'messages')) continue;
     const childPath = path ? `${path}.${key}` : key;
     if (value === null) {
       if (deletes) delete out[key];
       else out[key] = null;
       continue;
     }
-    out[key] = mergeValue(out[key], value, childPath);
+    out[key] = mergeValue(Object.hasOwn(out, key) ? out[key] : undefined, value, childPath);
   }
   return out;
 }
@@ -78,8 +117,9 @@ function mergeValue(current: Json | undefined, patch: Json, path: string): Json 
   }
   if (isObject(patch)) {
     if (!isObject(current)) return mergeObject({}, patch, path);
-    const disc = DISCRIMINATORS[path];
-    if (disc && disc in patch && patch[disc] !== current[disc]) return mergeObject({}, patch, path);
+    const disc = discriminator(path);
+    if (disc && Object.hasOwn(patch, disc) && patch[disc] !== current[disc])
+      return mergeObject({}, patch, path);
     return mergeObject(current, patch, path);
   }
   return patch;
@@ -141,7 +181,7 @@ function childPath(path: string, key: string): string {
 
 /** `applyPatch` builds a fresh object for `to` instead of merging (its discriminator changed). */
 function replaces(from: JsonObject, to: JsonObject, path: string): boolean {
-  const disc = DISCRIMINATORS[path];
+  const disc = discriminator(path);
   return disc !== undefined && Object.hasOwn(to, disc) && to[disc] !== from[disc];
 }
 

@@ -141,7 +141,7 @@ describe('DuetSession through msw', () => {
     expect(before.some((t) => t.startsWith('FIRMWARE_NAME'))).toBe(true);
     sim.closeSockets(1011, 'DCS is unavailable');
     await until(() => snap().link === 'reconnecting');
-    expect(snap().problem?.message).toMatch(/DSF\) is down/);
+    expect(snap().problem?.message).toMatch(/DSF\) or the link to it is down/);
     await until(() => snap().link === 'online', 30_000);
     const after = ctx.log.store
       .getState()

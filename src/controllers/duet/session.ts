@@ -5,6 +5,14 @@ import { describeError, LinkError } from '../../fleet/errors';
 import { KernelSession, type RunToken } from '../../fleet/kernel';
 import type { Poller, SocketLink } from '../../fleet/link';
 import { DuetClient, isAuthError } from './client';
+import {
+  asLinkFault,
+  authRetryDelay,
+  isLinkFault,
+  Liveness,
+  quickBackoff,
+  quickRetry,
+} from '../../fleet/faults';
 import { declareCommands, uploadCommandFor, type DuetCommands, type FileArgs } from './commands';
 import { ModelIngest } from './ingest';
 import type { JsonObject } from './patch';
@@ -20,22 +28,55 @@ export { HISTORY_POINTS, type CodeArgs, type DuetState, type UploadState } from 
  * One Duet (DSF) machine on the session kernel: `GET /machine/connect` (through the gateway: no
  * key, the gateway holds the DSF session; a key only where msw answers, in tests), then `WS /machine` for
  * the object model (full model, then patches, `OK\n` after each). The socket's liveness is its
- * declared heartbeat: `PING\n` after 2 s of silence, dead when nothing answers within 4 s more
+ * declared heartbeat: `PING\n` after 2 s of silence, dead when nothing answers within 2.5 s more
  * (or when the first model is 6 s late), then the socket reconnects on its backoff. Session
  * problems (a refused upgrade, 401/403) renew the session silently once, then show "needs
- * login". Close codes 1001/1011 mean the DSF service is down. While the socket stays down, the
- * model is polled (`GET /machine/model`) and the session kept alive (`GET /machine/noop`).
+ * login". Close codes 1001/1011 mean the DSF service (or the link to it) is down; 1007 that the
+ * console server refused a frame of the Duet's. While the socket stays down, the model is polled
+ * (`GET /machine/model`) and the session kept alive (`GET /machine/noop`).
+ *
+ * Bad data (issue 15): a frame that is no JSON object, nests too deep, or would make the model
+ * invalid is dropped, shown as a protocol error and logged; the last valid model stays, and a new
+ * socket reads the model whole again (at most every RESYNC_EVERY_MS). The session lives on.
  *
  * The console history is the machine's log (ctx.log), which outlives sockets and reconnects.
  */
 
+/**
+ * Liveness (issue 15: a silent link is down within 5 s): `PING\n` after 2 s without a frame (the
+ * rule is checked every 0.5 s), and dead when nothing answers within 2.5 s more. Through the
+ * console server a PING is answered by the server itself, which keeps the one socket to DSF and
+ * pings it on its own (sharing.ts `ping`, gateway/streams.ts): a Duet silent for 4.5 s is noticed
+ * there and every page socket closed (1011), which this session shows as the link down. The
+ * protocol document says updates may pause ("if the client does not receive an update for a
+ * while"), so silence without a PING is not death. While the model is polled instead, a poll
+ * that fails or no polled model for POLL_SILENT_MS is the link down.
+ */
 export const PING_AFTER_MS = 2000;
-export const DEAD_AFTER_MS = 4000;
+export const DEAD_AFTER_MS = 2500;
+/** From connecting to the full model. */
+export const FIRST_MODEL_MS = 6000;
+/**
+ * The DSF refused the credentials that are not this page's (the machine's configured password, or
+ * none): why, what to do, and that it is tried again on its own.
+ */
+export const PASSWORD_REFUSED =
+  'The Duet refused the password (HTTP 403): check this machine\'s "password" in the machines file, or log in here. It is tried again on its own, at most once a minute.';
 export const NOOP_EVERY_MS = 4000;
 /** While the socket cannot be opened, the object model is polled this often (`GET /machine/model`). */
 export const POLL_EVERY_MS = 2000;
 /** Polling starts only when the socket has been down this long (a quick reconnect needs none). */
 export const POLL_AFTER_MS = 5000;
+/**
+ * While the model is polled, no good answer for this long is silence: the link is down (issue 15:
+ * within 5 s). Two polls missed, and a little slack.
+ */
+export const POLL_SILENT_MS = 4500;
+/**
+ * A dropped frame (bad data) makes the model read again by a new socket (its first frame is the
+ * full model), at most this often: bad data on every frame must not churn sockets.
+ */
+export const RESYNC_EVERY_MS = 10_000;
 
 export class DuetSession extends KernelSession {
   readonly client: DuetClient;
@@ -58,8 +99,18 @@ export class DuetSession extends KernelSession {
   private socketDownSince: number | null = null;
   private lastPollOkAt = 0;
   private authRetried = false;
+  /** Typed into the login form on this page; undefined: the credentials are the gateway's. */
   private password: string | undefined;
+  /** Refusals of the gateway's credentials in a row (the slow retry's backoff). */
+  private authRefusals = 0;
+  /** When this run started (an outage is measured from the last good data or this). */
+  private startedAt = 0;
   private connecting: { run: RunToken; done: Promise<boolean> } | null = null;
+  /** While the model is polled, its answers must keep coming (POLL_SILENT_MS). */
+  private readonly pollLiveness: Liveness;
+  /** The last model re-read after a dropped frame, and whether one is waiting its turn. */
+  private lastResyncAt = -Infinity;
+  private resyncDue = false;
 
   constructor(ctx: SessionContext) {
     super(ctx);
@@ -71,7 +122,9 @@ export class DuetSession extends KernelSession {
       store: this.store,
       accepted: () => {
         this.authRetried = false;
+        this.authRefusals = 0;
       },
+      resync: () => this.resync(),
     });
     const read: Reader = (fn, signal) => this.read(fn, signal);
     this.reads = new DuetReads(ctx.queries, this.client, read);
@@ -98,8 +151,10 @@ export class DuetSession extends KernelSession {
 
     this.socket = this.stream(() => ({
       url: () => this.client.socketUrl(),
-      // Opened once a session is there (onStart → connect), reconnected on its own backoff.
+      // Opened once a session is there (onStart → connect), reconnected on its own backoff:
+      // quick while the outage is young (back within 5 s of the fault ending).
       autoConnect: false,
+      backoff: quickBackoff(ctx, () => this.startedAt),
       now: ctx.now,
       onOpen: () => {
         this.gotFirst = false;
@@ -110,7 +165,7 @@ export class DuetSession extends KernelSession {
         silenceMs: PING_AFTER_MS,
         ping: 'PING\n',
         answerMs: DEAD_AFTER_MS,
-        firstMessageMs: PING_AFTER_MS + DEAD_AFTER_MS,
+        firstMessageMs: FIRST_MODEL_MS,
         onDead: (why) => this.onSocketDead(why),
       },
     }));
@@ -122,7 +177,13 @@ export class DuetSession extends KernelSession {
       apply: (raw) => this.onPolledModel(raw as JsonObject),
       intervalMs: () => POLL_EVERY_MS,
       when: () => this.pollDue(),
-      failed: (e) => this.sideReadFailed(e, POLL_EVERY_MS),
+      failed: (e) => this.modelPollFailed(e),
+    });
+    this.pollLiveness = new Liveness({
+      life: this.life,
+      now: ctx.now,
+      windowMs: () => POLL_SILENT_MS,
+      onSilent: (quiet) => this.pollSilent(quiet),
     });
     // Without a socket the DSF session would expire: keep it alive (not while the model is polled).
     this.noopPoll = this.poll({
@@ -144,10 +205,13 @@ export class DuetSession extends KernelSession {
   // ------------------------------------------------------------------ lifecycle
 
   protected override onStart(): void {
+    this.startedAt = this.ctx.now();
+    this.pollLiveness.start();
     void this.connect();
   }
 
   protected override onStop(): void {
+    this.resyncDue = false;
     this.uploads.stopAll();
     this.connecting = null;
     this.gotFirst = false;
@@ -176,7 +240,12 @@ export class DuetSession extends KernelSession {
       } catch (e) {
         if (!run.alive()) return false;
         if (isAuthError(e)) this.needsLogin(e);
-        else this.later(() => void this.connect(), this.tracker.fail(e));
+        else {
+          // A failed request (no answer, the server's own 502, a cut answer) is the link's, retried
+          // quickly: back within 5 s of the fault ending.
+          this.tracker.fail(asLinkFault(e));
+          this.later(() => void this.connect(), quickRetry(this.ctx, this.tracker, this.startedAt));
+        }
         return false;
       }
       if (!run.alive()) return false;
@@ -192,12 +261,27 @@ export class DuetSession extends KernelSession {
     return done;
   }
 
+  /**
+   * DSF refused the session. A password typed on this page is never tried again on the user's
+   * behalf. Otherwise the credentials are the gateway's (the machine's configured password): they
+   * are tried again on their own, slowly (a few quick tries, then once a minute, so a wrong
+   * password neither hammers DSF nor locks anything), and the page says what to do meanwhile.
+   */
   private needsLogin(e: unknown): void {
     this.socket.current()?.close();
     this.gotFirst = false;
-    const err = new LinkError('http', `Needs login: ${describeError(e)}`, { status: 403 });
+    const typed = this.password !== undefined;
+    const err = typed
+      ? new LinkError('http', `Needs login: ${describeError(e)}`, { status: 403 })
+      : new LinkError('http', PASSWORD_REFUSED, { status: 403 });
     this.tracker.fail(err, { needsLogin: true });
     this.store.setState({ needsPassword: true });
+    if (typed) return;
+    const delay = authRetryDelay(this.authRefusals++);
+    this.tracker.patch({ retryAt: this.ctx.now() + delay });
+    this.later(() => {
+      if (this.tracker.state === 'needs-login' && this.password === undefined) void this.connect();
+    }, delay);
   }
 
   /** A 401/403 (or a refused socket): renew the session once silently, then "needs login". */
@@ -228,11 +312,23 @@ export class DuetSession extends KernelSession {
       return false;
     }
     const why = reason ? `: ${reason}` : '';
+    if (code === 1007) {
+      // The console server refused a frame of the Duet's (bad data): shown as such; the socket
+      // reconnects and the full model is read again.
+      this.socketFailed(
+        new LinkError('protocol', `WS /machine: the Duet sent data the console cannot use${why}`, {
+          path: '(root)',
+        }),
+      );
+      return true;
+    }
     this.socketFailed(
       code === 1001 || code === 1011
-        ? new LinkError(
-            'vendor',
-            `The Duet service (DSF) is down: socket closed with ${code}${reason ? ` (${reason})` : ''}`,
+        ? // DSF's own "going away / unavailable", or the console server closing for a Duet that
+          // stopped answering: the link is down either way (never a verdict on the Duet).
+          new LinkError(
+            'network',
+            `The Duet service (DSF) or the link to it is down: socket closed with ${code}${reason ? ` (${reason})` : ''}`,
           )
         : new LinkError(
             'network',
@@ -271,7 +367,33 @@ export class DuetSession extends KernelSession {
   }
 
   private pollingHealthy(): boolean {
-    return this.lastPollOkAt > 0 && this.ctx.now() - this.lastPollOkAt < POLL_EVERY_MS * 3;
+    return this.lastPollOkAt > 0 && this.ctx.now() - this.lastPollOkAt < POLL_SILENT_MS;
+  }
+
+  /** The model is polled in place of the socket (the data comes from there). */
+  private polling(): boolean {
+    return this.socketDownSince !== null && this.store.getState().transport === 'polling';
+  }
+
+  /** No polled model for POLL_SILENT_MS while it is the source: the link is down. */
+  private pollSilent(quietMs: number): void {
+    if (!this.polling() || this.tracker.state !== 'online') return;
+    this.tracker.fail(
+      new LinkError(
+        'timeout',
+        `No answer from the Duet for ${Math.round(quietMs / 1000)} s (GET /machine/model; the live socket is down)`,
+      ),
+    );
+  }
+
+  /**
+   * A model poll failed. While it is the source of data, a link fault (no answer, the console
+   * server's own failure, a cut answer) is the link's at once; a dead session is renewed.
+   */
+  private modelPollFailed(e: unknown): number {
+    if (this.polling() && !isAuthError(e) && isLinkFault(e) && this.tracker.state === 'online')
+      this.tracker.fail(asLinkFault(e));
+    return this.sideReadFailed(e, POLL_EVERY_MS);
   }
 
   private pollDue(): boolean {
@@ -290,6 +412,7 @@ export class DuetSession extends KernelSession {
   }
 
   private onFrame(data: string): void {
+    this.pollLiveness.heard();
     const frame = this.ingest.parse(data);
     if (frame === 'pong') return;
     if (frame) {
@@ -307,9 +430,31 @@ export class DuetSession extends KernelSession {
     this.socket.current()?.send('OK\n');
   }
 
+  /**
+   * A frame was dropped (bad data: shown as a protocol error, logged): the model may now differ
+   * from the machine's. A new socket reads it whole (DSF sends the full model first), now or when
+   * RESYNC_EVERY_MS has passed since the last time; the session and its link stay as they are.
+   */
+  private resync(): void {
+    if (this.resyncDue || !this.started) return;
+    this.resyncDue = true;
+    const wait = Math.max(0, this.lastResyncAt + RESYNC_EVERY_MS - this.ctx.now());
+    this.later(() => {
+      if (!this.resyncDue) return;
+      this.resyncDue = false;
+      this.lastResyncAt = this.ctx.now();
+      const socket = this.socket.current();
+      if (!socket || this.socketDownSince !== null || this.tracker.state === 'needs-login') return;
+      this.ctx.log.add('debug', 'link', 'Reading the object model again (new socket)');
+      this.gotFirst = false;
+      socket.connect();
+    }, wait);
+  }
+
   private onPolledModel(raw: JsonObject): void {
     if (this.socketDownSince === null) return; // the socket is back: it is the source
     this.lastPollOkAt = this.ctx.now();
+    this.pollLiveness.heard();
     if (this.store.getState().transport !== 'polling') {
       this.ctx.log.add('warning', 'link', 'Live updates unavailable: polling GET /machine/model');
       this.store.setState({ transport: 'polling' });

@@ -3,7 +3,16 @@ import type { Activity } from '../../fleet/types';
 import { duetAccess } from './access';
 import { baseName } from './client';
 import { routeOf } from './gateway';
-import { applyPatch, isObject, patchBetween, takeFullModel, type Json, type JsonObject } from './patch';
+import {
+  applyPatch,
+  isObject,
+  MAX_DEPTH,
+  nestsDeeper,
+  patchBetween,
+  takeFullModel,
+  type Json,
+  type JsonObject,
+} from './patch';
 import { activityOf, alarmsOf, jobSummary } from './snapshot';
 import { machineStatus, objectModelSchema } from './wire';
 
@@ -84,7 +93,8 @@ export const duetModelStream: ModelStreamDecl = {
     const obj = parseObject(frame, 'a first frame');
     if (obj instanceof Error) return obj;
     // The messages of the first frame are DSF's pending ones at that moment: events, not model.
-    return takeFullModel(obj).model;
+    const r = takeFullModel(obj);
+    return r.refused === null ? r.model : new Error(`WS /machine: ${r.refused}`);
   },
   apply(model, frame) {
     // The gateway's own keep-alive answer, should it come here: nothing changes.
@@ -92,6 +102,7 @@ export const duetModelStream: ModelStreamDecl = {
     const patch = parseObject(frame, 'a patch');
     if (patch instanceof Error) return patch;
     const r = applyPatch(model, patch);
+    if (r.refused !== null) return new Error(`WS /machine: ${r.refused}`);
     return { model: r.model, events: r.messages };
   },
   diff: (from, to, events) => JSON.stringify(patchBetween(from, to, events)),
@@ -103,7 +114,8 @@ export const duetModelStream: ModelStreamDecl = {
    * an idle socket open (ASP.NET WebSocket keep-alive), so the ping is not needed to keep it: it
    * is how a powered-off machine is noticed (the document: "useful for clients to detect
    * unexpected connection aborts"). Browsers' PINGs are answered by the gateway now, so the
-   * gateway must notice for them, as fast as they did (2 s of silence).
+   * gateway notices for them: a PING after 2 s of silence, and the Duet is gone after 4.5 s
+   * without any frame (streams.ts: every page socket closes, within the issue's 5 s).
    */
   ping: { frame: 'PING\n', everyMs: UPSTREAM_PING_MS, isPong },
 };
@@ -205,7 +217,7 @@ function looksWhole(obj: JsonObject): boolean {
  */
 export function readModelFrame(frame: string): Partial<WatchSummary> | null {
   const obj = parseObject(frame, 'a frame');
-  if (obj instanceof Error) return null;
+  if (obj instanceof Error || nestsDeeper(obj, MAX_DEPTH)) return null;
   if (looksWhole(obj)) {
     const s = summaryOfModel(obj);
     if (!(s instanceof Error)) return s;
@@ -232,7 +244,8 @@ export const duetWatch: WatchDecl = {
       if (status < 200 || status > 299) return new Error(`GET /machine/model answered ${status}`);
       const obj = parseObject(body, 'an answer');
       if (obj instanceof Error) return new Error(obj.message.replace('WS /machine', 'GET /machine/model'));
-      return summaryOfModel(takeFullModel(obj).model);
+      const r = takeFullModel(obj);
+      return r.refused === null ? summaryOfModel(r.model) : new Error(`GET /machine/model: ${r.refused}`);
     },
   },
   stream: { path: '/machine', read: readModelFrame },

@@ -1,4 +1,5 @@
 import { LinkError } from '../../fleet/errors';
+import { gatewayBodyError } from '../../fleet/faults';
 import { HttpClient, type VendorErrorParser } from '../../fleet/http';
 import { statusText } from './codes';
 import {
@@ -118,7 +119,12 @@ export class G2coreClient {
   readonly http: HttpClient;
 
   constructor(machineId: string, opts: { timeoutMs?: number } = {}) {
-    this.http = new HttpClient({ machineId, timeoutMs: opts.timeoutMs ?? 5000, parseError: parseG2Error });
+    this.http = new HttpClient({
+      machineId,
+      timeoutMs: opts.timeoutMs ?? 5000,
+      // The console server's own failure body first: its answer is never the controller's.
+      parseError: (status, body, text) => gatewayBodyError(status, body) ?? parseG2Error(status, body, text),
+    });
   }
 
   version(signal?: AbortSignal): Promise<VersionInfo> {

@@ -187,8 +187,9 @@ export function runningJob(jobs: readonly Job[]): Job | undefined {
 export function jobSummary(jobs: readonly Job[], now: number): JobSummary | null {
   const j = runningJob(jobs);
   if (!j) return null;
+  // Clamped: a server's `done` may be negative or beyond `lines`.
   const progress =
-    j.lines && j.lines > 0 && typeof j.done === 'number' ? Math.min(1, j.done / j.lines) : null;
+    j.lines && j.lines > 0 && typeof j.done === 'number' ? Math.min(1, Math.max(0, j.done / j.lines)) : null;
   const elapsed = j.started !== null ? Math.max(0, (now - j.started) / 1000) : null;
   const remaining =
     progress !== null && progress > 0.02 && elapsed !== null

@@ -1,6 +1,7 @@
 import type { StoreApi } from 'zustand/vanilla';
 import type { SessionContext } from '../../fleet/contract';
 import { describeError, LinkError } from '../../fleet/errors';
+import { isLinkFault } from '../../fleet/faults';
 import type { RunToken } from '../../fleet/kernel';
 import { g2StatusOf, type G2coreClient, type OpControl } from './client';
 import {
@@ -39,6 +40,18 @@ export interface OpsHost {
   refresh(jobs?: boolean): void;
 }
 
+/** An operation's replies in words: the server's JSON, shortened; never thrown (too deep, too big). */
+export function repliesText(r: ReadonlyArray<Record<string, unknown>> | undefined): string {
+  if (!r || r.length === 0) return '';
+  let text: string;
+  try {
+    text = r.map((x) => JSON.stringify(x)).join(' ');
+  } catch {
+    return '(a reply the console cannot show)';
+  }
+  return text.length > 500 ? `${text.slice(0, 500)}…` : text;
+}
+
 const moving = (t: TrackedOp) => t.op?.opstate.state === 'run' || t.op?.opstate.state === 'pause';
 
 export class OpTracker {
@@ -63,7 +76,8 @@ export class OpTracker {
       try {
         out.push({ id: t.id, op: await this.host.client.operation(t.id, signal), gone: false });
       } catch (e) {
-        if (g2StatusOf(e)?.code === 100) out.push({ id: t.id, op: null, gone: true });
+        // "Unrecognized" from the server itself: gone. A failed request says nothing (next poll).
+        if (!isLinkFault(e) && g2StatusOf(e)?.code === 100) out.push({ id: t.id, op: null, gone: true });
       }
     }
     return out;
@@ -85,7 +99,8 @@ export class OpTracker {
     try {
       return { list: await this.host.client.operations(signal) };
     } catch (e) {
-      if (e instanceof LinkError && (e.status === 404 || e.status === 405))
+      // Only the server's own whole answer says it has no list; a failed request is the link's.
+      if (e instanceof LinkError && !isLinkFault(e) && (e.status === 404 || e.status === 405))
         return { unsupported: describeError(e) };
       return null;
     }
@@ -141,7 +156,7 @@ export class OpTracker {
         log.add(code === 207 ? 'warning' : 'error', 'controller', `${t.label}: ${err}`);
         if (code !== 207) this.set({ lastError: err });
       }
-      const replies = next.op?.r?.map((r) => JSON.stringify(r)).join(' ') ?? '';
+      const replies = repliesText(next.op?.r);
       if (t.purpose === 'mdi')
         this.updateConsole(id, now === 'done' ? 'done' : 'error', err ?? (replies || null));
       if (t.purpose === 'mdi' && replies) log.info('console', `< ${replies}`);

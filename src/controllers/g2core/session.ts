@@ -1,5 +1,7 @@
 import { describeError, LinkError } from '../../fleet/errors';
+import { asLinkFault, isLinkFault, Liveness, quickRetry } from '../../fleet/faults';
 import { createSharedStore, KernelSession, type Fetcher, type RunToken } from '../../fleet/kernel';
+import { HIDDEN_POLL_MS } from '../../fleet/link';
 import { STAT_ALARM, STAT_INTERLOCK, STAT_PANIC, STAT_SHUTDOWN, statLabel } from './codes';
 import { G2coreClient, g2StatusOf } from './client';
 import { declareCommands, type CommandHost } from './commands';
@@ -23,7 +25,7 @@ import {
 } from './model';
 import { OpTracker, type OpsRead } from './operations';
 import { GROUP_STALE_MS, GROUPS_STALE_MS, JOBS_KEY, SETTINGS_GROUPS_KEY, settingsGroupKey } from './queries';
-import type { Job, SettingsGroup, SrValues, VersionInfo } from './wire';
+import type { Job, Scalar, SettingsGroup, SrValues, VersionInfo } from './wire';
 
 export {
   AXIS_LETTERS,
@@ -49,11 +51,32 @@ export const SR_POLL_MS = 250;
 export const SLOW_POLL_MS = 1000;
 /** A full (unfiltered) status report now and then, in case a changed-only answer was lost. */
 const FULL_EVERY = 40;
+/**
+ * The status report's window (issue 15): no good report for this long (about 12 polls) is a silent
+ * link, shown as down at once rather than at the request's own timeout (5 s). While the page is
+ * hidden the poll runs every 10 s or more, and the window grows with it.
+ */
+export const LIVENESS_MS = 3000;
 
 /** One status poll: identity and axes once per run, then a (changed-only) status report. */
 interface StatusRead {
   info: { version: VersionInfo | null; tree: Record<string, unknown> | null; warnings: string[] } | null;
   update: SrValues;
+  /** An unfiltered report: every key the report is configured with (it replaces what we hold). */
+  full: boolean;
+}
+
+/** Longest changed-only filter sent (as JSON); beyond it the report is read in full. */
+const MAX_FILTER_CHARS = 2000;
+/** A text value longer than this is selected (null), not echoed back to the controller. */
+const MAX_FILTER_TEXT = 64;
+
+/** The changed-only filter of the values we hold, or null when it would not fit in a URL. */
+export function filterOf(sr: SrValues): Record<string, Scalar> | null {
+  const filter: Record<string, Scalar> = {};
+  for (const [k, v] of Object.entries(sr))
+    filter[k] = typeof v === 'string' && v.length > MAX_FILTER_TEXT ? null : v;
+  return JSON.stringify(filter).length <= MAX_FILTER_CHARS ? filter : null;
 }
 
 /**
@@ -77,14 +100,25 @@ export class G2coreSession extends KernelSession implements CommandHost {
   });
 
   private polls = 0;
+  /** Version and axes read since the link last failed: verdicts are re-checked on every reconnect. */
   private infoLoaded = false;
   private alarmSince: { stat: number; at: number } | null = null;
+  /** When this run started (an outage is measured from the last good data or this). */
+  private startedAt = 0;
+  /** The status report must answer within its window (LIVENESS_MS). */
+  private readonly liveness = new Liveness({
+    life: this.life,
+    now: this.ctx.now,
+    windowMs: () => (this.ctx.visibility.hidden() ? HIDDEN_POLL_MS + LIVENESS_MS : LIVENESS_MS),
+    onSilent: (quiet) => this.silent(quiet),
+  });
 
   private readonly statusPoll = this.poll<StatusRead>({
     name: 'status',
     read: (signal) => this.readStatus(signal),
     apply: (r) => this.applyStatus(r),
     intervalMs: () => SR_POLL_MS,
+    failed: (e) => this.statusFailed(e),
   });
 
   private readonly slowPoll = this.poll<OpsRead>({
@@ -98,8 +132,12 @@ export class G2coreSession extends KernelSession implements CommandHost {
     // The first status report kicks it (its stat is new).
     firstDelayMs: SLOW_POLL_MS,
     when: () => this.tracker.state === 'online',
-    // Whether the controller answers is the status poll's to say.
-    failed: () => SLOW_POLL_MS,
+    // Whether the controller answers is the status poll's to say; an answer it could not use is logged.
+    failed: (e) => {
+      if (!(e instanceof LinkError))
+        this.ctx.log.error('protocol', `Could not use the jobs and operations read: ${describeError(e)}`);
+      return SLOW_POLL_MS;
+    },
   });
 
   private readonly decl = declareCommands(this);
@@ -129,9 +167,39 @@ export class G2coreSession extends KernelSession implements CommandHost {
   }
 
   protected override onStart(): void {
-    // Version and axes once per run (a restart may face another firmware).
+    // Version and axes once per run and per reconnect (a restart may face another firmware).
     this.infoLoaded = false;
     this.polls = 0;
+    this.startedAt = this.ctx.now();
+    this.liveness.start();
+  }
+
+  /**
+   * A failed status read: a request that got no whole answer (no answer, a timeout, the console
+   * server's failure, a 5xx, a cut answer) is a link problem; a whole answer of the wrong shape a
+   * protocol error. Retried quickly while the outage is young; version and axes are read again.
+   */
+  private statusFailed(e: unknown): number {
+    this.infoLoaded = false;
+    // HttpClient turns every transport failure into a LinkError: anything else is an answer this
+    // console could not use (a protocol error in words), never a link problem.
+    this.tracker.fail(
+      e instanceof LinkError
+        ? asLinkFault(e)
+        : new LinkError('protocol', `Could not use the status report: ${describeError(e)}`),
+    );
+    return quickRetry(this.ctx, this.tracker, this.startedAt);
+  }
+
+  /** No status report within the window: the link is in doubt now, not at the request's timeout. */
+  private silent(quietMs: number): void {
+    if (this.tracker.state !== 'online') return;
+    this.infoLoaded = false;
+    this.tracker.fail(
+      new LinkError('timeout', `The controller has not answered for ${Math.round(quietMs / 1000)} s`),
+    );
+    // The read in flight is still waiting for its answer: no "next try" time to show.
+    this.tracker.patch({ retryAt: null });
   }
 
   /** Public for the commands (commands.ts): the run a command's answer belongs to. */
@@ -176,47 +244,62 @@ export class G2coreSession extends KernelSession implements CommandHost {
 
   private async readStatus(signal: AbortSignal): Promise<StatusRead> {
     this.polls++;
-    const info = this.infoLoaded ? null : await this.readInfo(signal);
     const sr = this.detail.getState().sr;
-    const full = Object.keys(sr).length === 0 || this.polls % FULL_EVERY === 0;
     // Changed-only filter: send the values we have; the controller answers with what differs.
-    const update = await this.client.statusReport(full ? undefined : sr, signal);
-    return { info, update };
+    const filter = filterOf(sr);
+    // A full report on (re)connect (the values we hold may be from before the outage), now and
+    // then, and when the values we hold would not fit in a URL.
+    const full =
+      !this.infoLoaded || filter === null || Object.keys(sr).length === 0 || this.polls % FULL_EVERY === 0;
+    // Version and axes alongside, on (re)connect: one round trip, not three.
+    const [info, update] = await Promise.all([
+      this.infoLoaded ? null : this.readInfo(signal),
+      this.client.statusReport(full || filter === null ? undefined : filter, signal),
+    ]);
+    return { info, update, full };
   }
 
-  /** Version and axis/override settings. */
+  /**
+   * Version and axis/override settings. Only the controller's own whole answer says it has no
+   * `/version` or no filters; a request that failed is the link's (thrown: the poll retries).
+   */
   private async readInfo(signal: AbortSignal): Promise<NonNullable<StatusRead['info']>> {
     const warnings: string[] = [];
-    let version: VersionInfo | null = null;
-    try {
-      version = await this.client.version(signal);
-    } catch (e) {
-      // A server that answers but has no /version still gets a DRO; transport errors count.
-      if (!(e instanceof LinkError) || (e.kind !== 'http' && e.kind !== 'vendor')) throw e;
-      warnings.push(`GET /version failed: ${describeError(e)}`);
-    }
-    let tree: Record<string, unknown> | null = null;
-    try {
-      const filter: Record<string, Record<string, null> | null> = {};
-      for (const a of AXIS_LETTERS) filter[a] = { am: null };
-      tree = await this.client.machine({ ...filter, mfoe: null, ssoe: null }, signal);
-    } catch (e) {
-      if (signal.aborted) throw e;
-      // A server without filters still gets a DRO (x, y, z); say so once.
-      warnings.push(`Could not read axis modes: ${describeError(e)}`);
-    }
+    const filter: Record<string, Record<string, null> | null> = {};
+    for (const a of AXIS_LETTERS) filter[a] = { am: null };
+    const [version, tree] = await Promise.all([
+      this.client.version(signal).catch((e: unknown): VersionInfo | null => {
+        // A server that answers but has no /version still gets a DRO.
+        if (!(e instanceof LinkError) || isLinkFault(e) || (e.kind !== 'http' && e.kind !== 'vendor'))
+          throw e;
+        warnings.push(`GET /version failed: ${describeError(e)}`);
+        return null;
+      }),
+      this.client
+        .machine({ ...filter, mfoe: null, ssoe: null }, signal)
+        .catch((e: unknown): Record<string, unknown> | null => {
+          if (signal.aborted || isLinkFault(e)) throw e;
+          // A server without filters still gets a DRO (x, y, z); say so once.
+          warnings.push(`Could not read axis modes: ${describeError(e)}`);
+          return null;
+        }),
+    ]);
     return { version, tree, warnings };
   }
 
-  private applyStatus({ info, update }: StatusRead): void {
+  private applyStatus({ info, update, full }: StatusRead): void {
+    this.liveness.heard();
     if (info) {
       this.infoLoaded = true;
       for (const w of info.warnings) this.ctx.log.warn('protocol', w);
       if (info.version) this.detail.setState({ version: info.version });
       if (info.tree) this.detail.setState(machineInfoOf(info.tree));
+      // "No GET /operation" is asked again after a reconnect (another server may answer now).
+      if (!this.detail.getState().opsList) this.detail.setState({ opsList: true });
     }
-    // Structural sharing: an answer that changes nothing notifies nobody.
-    this.detail.setState((d) => ({ sr: { ...d.sr, ...update } }));
+    // Structural sharing: an answer that changes nothing notifies nobody. A full report is the
+    // whole state (keys it no longer has are dropped); a changed-only one is merged.
+    this.detail.setState((d) => ({ sr: full ? update : { ...d.sr, ...update } }));
     this.publish();
     // A new state: read the jobs and operations now rather than up to a second later.
     if ('stat' in update) this.slowPoll.kick();

@@ -18,13 +18,17 @@ import {
 } from './wire';
 import { parseJsonLenient, NOT_JSON } from '../../fleet/http';
 import { resolveWithin } from '../../ui/safe-url';
+import { gatewayBodyError } from '../../fleet/faults';
 
 /**
  * Typed client for the Prunt web API, one method per endpoint, on the console's HttpClient
  * (`/machines/<id>/…`). Prunt answers failures with 500 and a plain-text body ("Can not run file
  * while another file is running."): that text becomes a `vendor` LinkError shown as it is.
  */
-export const parsePruntError: VendorErrorParser = (status, _body, text) => {
+export const parsePruntError: VendorErrorParser = (status, body, text) => {
+  // The console server's own failure (`{"error","gateway":true}`) is never Prunt's words.
+  const own = gatewayBodyError(status, body);
+  if (own) return own;
   if (status >= 400 && text.trim() !== '' && !text.trim().startsWith('<')) {
     return new LinkError('vendor', text.trim(), { status, vendorMessage: text.trim() });
   }

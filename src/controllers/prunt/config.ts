@@ -1,13 +1,20 @@
 import type { StoreApi } from 'zustand/vanilla';
-import { describeError } from '../../fleet/errors';
+import { describeError, LinkError } from '../../fleet/errors';
 import type { RunToken } from '../../fleet/kernel';
 import { createSharedStore } from '../../fleet/kernel';
 import type { MachineQueries } from '../../fleet/kernel';
-import { valuesEqual } from '../../forms/ir';
+import { isValueNode, valuesEqual } from '../../forms/ir';
 import { FormModel } from '../../forms/model';
 import type { DraftStorage } from '../../forms/storage';
 import type { PruntClient } from './client';
-import { buildFlatPatch, buildForm, buildModulePatch, placeErrors, readValues } from './config-ir';
+import {
+  buildFlatPatch,
+  buildForm,
+  buildModulePatch,
+  placeErrors,
+  readValues,
+  type PruntApi,
+} from './config-ir';
 import { ALWAYS_FRESH, PRUNT_KEYS } from './queries';
 import { initialConfigState, type ConfigState } from './state';
 
@@ -19,6 +26,16 @@ export interface PruntConfigDeps {
   now: () => number;
   /** The session's current run: a read's answer is written only while the run that asked is current. */
   run: () => RunToken;
+  /** The API generation the controller's status schema showed (null: not known yet). */
+  api: () => PruntApi | null;
+}
+
+const API_WORDS: Record<PruntApi, string> = { module: 'module API', flat: 'flat API (2025)' };
+
+function orphanWords(labels: string[]): string {
+  const one = labels.length === 1;
+  const named = labels.slice(0, 3).join(', ') + (labels.length > 3 ? ', …' : '');
+  return `The controller's configuration schema changed and no longer holds ${one ? 'your unsaved edit' : `${labels.length} of your unsaved edits`} (${named}): discard ${one ? 'it' : 'them'} to load the new schema.`;
 }
 
 /**
@@ -62,9 +79,27 @@ export class PruntConfig {
         ALWAYS_FRESH,
       );
       if (!run.alive()) return;
+      // A server speaks one generation: a schema of the other is a broken answer, not a new form
+      // (it would take the user's edits, whose ids it does not hold, and save the wrong shape).
+      const api = this.deps.api();
+      if (api && wire.api !== api)
+        throw new LinkError(
+          'protocol',
+          `The config schema is of the ${API_WORDS[wire.api]}, but this controller speaks the ${API_WORDS[api]}`,
+          { path: '(root)' },
+        );
       const form = buildForm(wire, text);
       let { model } = this.store.getState();
       const old = this.store.getState().form;
+      if (model && old && old.form.key !== form.form.key) {
+        // A schema that cannot hold the user's unsaved edits does not replace the form: the
+        // edits would be dropped. The user discards them first (then "Reload" takes it).
+        const orphans = model.changes().filter((c) => {
+          const n = form.form.nodes.get(c.id);
+          return !n || !isValueNode(n);
+        });
+        if (orphans.length > 0) throw new Error(orphanWords(orphans.map((c) => c.label)));
+      }
       if (!model || !old || old.form.key !== form.form.key) {
         model = new FormModel(form.form, {
           storage: this.deps.drafts,

@@ -1,3 +1,5 @@
+import { readFileSync } from 'node:fs';
+import path from 'node:path';
 import { setupServer } from 'msw/node';
 import { afterAll, afterEach, beforeAll, beforeEach, describe, expect, it, vi } from 'vitest';
 import type { Principal } from '../../fleet/commands';
@@ -6,13 +8,13 @@ import { alwaysVisible } from '../../fleet/link';
 import { simulatorHandlers } from '../../fleet/msw';
 import type { Simulator } from '../../fleet/sim';
 import { memoryDraftStorage } from '../../forms/storage';
-import { FLEET_DIVISOR, PruntSession } from './session';
+import { FLEET_DIVISOR, PruntSession, SILENCE_MS } from './session';
 import { loadBoard3 } from './sim/board';
 import { PruntSimulator } from './sim/sim';
 
 /**
  * The Prunt session on the kernel (issue 12): nothing written after stop, a status read right
- * after a command, the socket's heartbeat (10 s of silence is death → reconnect), and command
+ * after a command, the socket's heartbeat (3 s of silence is death → reconnect), and command
  * availability from the stores it names. HTTP goes to the simulator through msw; the socket is
  * a double the test feeds by hand (fake timers drive time).
  */
@@ -85,13 +87,21 @@ async function settle(): Promise<void> {
   }
 }
 
+const FIXTURES = path.resolve(import.meta.dirname, '../../../tests/fixtures/prunt');
+
 let seq = 0;
 
-/** A module-API simulator whose HTTP answers can be held back per path (`gates`). */
+/**
+ * A module-API simulator whose HTTP answers can be held back per path (`gates`), or answered by
+ * the console server's own 502 (`broken`: it could not reach the controller).
+ */
 function setup() {
   const id = `pk-${++seq}`;
   const sim = new PruntSimulator({ id, name: 'Kernel printer', api: 'module' });
   const gates = new Map<string, Promise<void>>();
+  const broken = new Set<string>();
+  /** Paths answered with this text (200) instead of the simulator's answer. */
+  const answers = new Map<string, string>();
   const requests: string[] = [];
   const wrapped: Simulator = {
     kind: 'prunt',
@@ -99,6 +109,13 @@ function setup() {
     fetch: async (req, path) => {
       requests.push(`${req.method} ${path}`);
       await gates.get(path);
+      const text = answers.get(path);
+      if (text !== undefined) return new Response(text, { headers: { 'Content-Type': 'application/json' } });
+      if (broken.has(path))
+        return new Response(JSON.stringify({ error: 'cannot reach the controller', gateway: true }), {
+          status: 502,
+          headers: { 'Content-Type': 'application/json', 'X-Shopdeck-Gateway': 'error' },
+        });
       return sim.fetch(req, path);
     },
   };
@@ -125,7 +142,7 @@ function setup() {
     });
   };
   const statusReads = () => requests.filter((r) => r === 'GET /status/values').length;
-  return { id, sim, ctx, session, gates, requests, tick, statusReads };
+  return { id, sim, ctx, session, gates, broken, answers, requests, tick, statusReads };
 }
 
 /** Start, open the socket, let the schema arrive and one tick make the machine online. */
@@ -240,9 +257,12 @@ describe('Prunt: a command is followed by a status read at once (kick)', () => {
   it('shows the file running right after "Run file", without waiting for the next tick', async () => {
     const t = setup();
     await online(t);
-    // No status reads while the socket ticks and nothing was commanded.
-    await vi.advanceTimersByTimeAsync(5000);
-    last().message(await t.tick());
+    // No status reads while the socket ticks (once a second) and nothing was commanded.
+    for (let i = 0; i < 5; i++) {
+      await vi.advanceTimersByTimeAsync(1000);
+      last().message(await t.tick());
+    }
+    expect(FakeSocket.all).toHaveLength(1);
     expect(t.statusReads()).toBe(0);
     expect(t.ctx.snapshot.getState().activity).toBe('idle');
     await t.ctx.commands.run(t.session.cmd.runFile, 'benchy.gcode');
@@ -251,9 +271,12 @@ describe('Prunt: a command is followed by a status read at once (kick)', () => {
     expect(t.statusReads()).toBe(1);
     expect(t.ctx.snapshot.getState().activity).toBe('running');
     expect(t.ctx.snapshot.getState().job?.name).toBe('benchy.gcode');
-    // One read per command, then quiet again.
-    last().message(await t.tick());
-    await vi.advanceTimersByTimeAsync(5000);
+    // One read per command, then quiet again while the socket ticks.
+    for (let i = 0; i < 5; i++) {
+      last().message(await t.tick());
+      await vi.advanceTimersByTimeAsync(1000);
+    }
+    expect(t.ctx.snapshot.getState().link).toBe('online');
     expect(t.statusReads()).toBe(1);
   });
 
@@ -275,20 +298,21 @@ describe('Prunt: a command is followed by a status read at once (kick)', () => {
   });
 });
 
-describe('Prunt: the socket heartbeat (10 s of silence is a dead link)', () => {
+describe('Prunt: the socket heartbeat (3 s of silence is a dead link: down within 5 s)', () => {
   it('silence → reconnecting with the reason → a new socket, the divisor again, online again', async () => {
+    expect(SILENCE_MS).toBe(3000);
     const t = setup();
     const first = await online(t);
     expect(first.sent).toEqual([String(FLEET_DIVISOR)]);
-    await vi.advanceTimersByTimeAsync(9000);
+    await vi.advanceTimersByTimeAsync(2500);
     first.message(await t.tick()); // ticks keep it alive
-    await vi.advanceTimersByTimeAsync(9000);
+    await vi.advanceTimersByTimeAsync(2500);
     expect(t.ctx.snapshot.getState().link).toBe('online');
     expect(FakeSocket.all).toHaveLength(1);
-    await vi.advanceTimersByTimeAsync(1500); // 10 s since the last tick
+    await vi.advanceTimersByTimeAsync(1000); // 3.5 s since the last tick (checked every 0.5 s)
     expect(t.ctx.snapshot.getState().link).toBe('reconnecting');
     expect(t.ctx.snapshot.getState().problem?.message).toMatch(
-      /No status from the controller \(No data for 10 s\)/,
+      /No status from the controller \(No data for 3 s\)/,
     );
     expect(first.closed).toBe(true);
     await vi.advanceTimersByTimeAsync(1000); // backoff ≤ 1 s
@@ -301,14 +325,118 @@ describe('Prunt: the socket heartbeat (10 s of silence is a dead link)', () => {
     expect(t.ctx.snapshot.getState().link).toBe('online');
   });
 
-  it('a socket that opens but never speaks is dead after 10 s too', async () => {
+  it('a socket that opens but never speaks is dead after 3 s too', async () => {
     const t = setup();
     t.session.start();
     last().open();
-    await vi.advanceTimersByTimeAsync(10_500);
+    await vi.advanceTimersByTimeAsync(2500);
+    expect(t.ctx.snapshot.getState().link).toBe('connecting');
+    expect(FakeSocket.all[0]?.closed).toBe(false);
+    await vi.advanceTimersByTimeAsync(1000);
+    expect(t.ctx.snapshot.getState().link).toBe('reconnecting');
     expect(t.ctx.snapshot.getState().problem?.message).toMatch(/No data after connecting/);
+    expect(FakeSocket.all[0]?.closed).toBe(true);
     await vi.advanceTimersByTimeAsync(1000);
     expect(FakeSocket.all).toHaveLength(2);
+  });
+});
+
+describe('Prunt: the status schema read after a failure', () => {
+  it('is a link fault, retried quickly by one retry loop however often the socket reopens', async () => {
+    const t = setup();
+    t.broken.add('/status/schema');
+    const schemaReads = () => t.requests.filter((r) => r === 'GET /status/schema').length;
+    t.session.start();
+    await settle();
+    expect(schemaReads()).toBe(1);
+    expect(t.ctx.snapshot.getState().link).toBe('reconnecting');
+    expect(t.ctx.snapshot.getState().problem?.message).toMatch(/cannot reach the controller/);
+    // Each new socket that opens asks again (the HTTP side may be back): four of them here.
+    for (let i = 0; i < 4; i++) {
+      last().open();
+      last().message('{"Server_Start_Time": " 1000.5"}');
+      await settle();
+      last().onclose?.({ code: 1006, reason: '' });
+      await vi.advanceTimersByTimeAsync(1000);
+    }
+    const before = schemaReads();
+    // 12 s of outage: one loop, ≤ 2.5 s apart (1, 2, 2.5, 2.5 … s), not one loop per socket opened.
+    for (let i = 0; i < 24; i++) {
+      await vi.advanceTimersByTimeAsync(500);
+      await new Promise<void>((r) => setImmediate(r));
+    }
+    const during = schemaReads() - before;
+    expect(during).toBeGreaterThanOrEqual(3);
+    expect(during).toBeLessThanOrEqual(7);
+    // The controller answers again: the machine has its schema within 5 s, without a restart.
+    t.broken.clear();
+    for (let i = 0; i < 10 && !t.session.store.getState().statusModel; i++) {
+      await vi.advanceTimersByTimeAsync(500);
+      await new Promise<void>((r) => setImmediate(r));
+    }
+    expect(t.session.store.getState().statusModel).not.toBeNull();
+    expect(t.session.store.getState().api).toBe('module');
+  });
+});
+
+describe('Prunt: an unsaved config edit survives the schema answers of a reload', () => {
+  const FIELD = 'Steppers$Steppers$STEPPER_1$Run current';
+
+  async function editing(t: ReturnType<typeof setup>) {
+    await online(t);
+    await t.session.openConfig();
+    const model = t.session.config.getState().model;
+    model?.set(FIELD, '2.5');
+    const kept = () =>
+      t.session.config
+        .getState()
+        .model?.changes()
+        .some((c) => c.id === FIELD && c.to === '2.5') ?? false;
+    expect(kept()).toBe(true);
+    return { model, kept };
+  }
+
+  it('a schema of the other API generation is refused in words; the form and the edit stay', async () => {
+    const t = setup();
+    const { model, kept } = await editing(t);
+    t.answers.set('/config/schema', readFileSync(path.join(FIXTURES, 'config-schema.json'), 'utf8'));
+    await t.session.loadConfig(null);
+    const c = t.session.config.getState();
+    expect(c.phase).toBe('error');
+    expect(c.error).toMatch(
+      /config schema is of the flat API \(2025\), but this controller speaks the module API/,
+    );
+    expect(c.model).toBe(model);
+    expect(c.form?.api).toBe('module');
+    expect(kept()).toBe(true);
+    // The true schema again: the editor is ready, with the edit.
+    t.answers.clear();
+    await t.session.loadConfig(null);
+    expect(t.session.config.getState().phase).toBe('ready');
+    expect(kept()).toBe(true);
+  });
+
+  it('a changed schema that no longer holds the edit does not replace the form until the edit is discarded', async () => {
+    const t = setup();
+    const { model, kept } = await editing(t);
+    const res = await t.sim.fetch(new Request('http://x/config/schema'), '/config/schema');
+    const schema = (await res.json()) as { Config: Record<string, unknown> };
+    delete schema.Config['Steppers'];
+    t.answers.set('/config/schema', JSON.stringify(schema));
+    await t.session.loadConfig(null);
+    const c = t.session.config.getState();
+    expect(c.phase).toBe('error');
+    expect(c.error).toMatch(
+      /schema changed and no longer holds your unsaved edit \(Steppers › STEPPER_1 › Run current\): discard it/,
+    );
+    expect(c.model).toBe(model);
+    expect(kept()).toBe(true);
+    // The user discards it: the new schema is taken.
+    model?.discardAll();
+    await t.session.loadConfig(null);
+    expect(t.session.config.getState().phase).toBe('ready');
+    expect(t.session.config.getState().model).not.toBe(model);
+    expect(t.session.config.getState().form?.form.nodes.has(FIELD)).toBe(false);
   });
 });
 

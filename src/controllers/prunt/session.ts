@@ -2,13 +2,14 @@ import type { StoreApi } from 'zustand/vanilla';
 import type { AnyCommand } from '../../fleet/commands';
 import type { SessionContext } from '../../fleet/contract';
 import { describeError, LinkError } from '../../fleet/errors';
-import { createSharedStore, KernelSession } from '../../fleet/kernel';
+import { createSharedStore, KernelSession, type RunToken } from '../../fleet/kernel';
 import type { Poller, SocketLink } from '../../fleet/link';
 import { UploadTracker } from '../../fleet/upload';
 import { defaultDraftStorage, type DraftStorage } from '../../forms/storage';
 import { PruntClient } from './client';
 import { declarePruntCommands, type PruntCommands } from './commands';
 import { PruntConfig } from './config';
+import { asLinkFault, isLinkFault, quickBackoff, quickRetry } from '../../fleet/faults';
 import { History } from './history';
 import { PruntLive } from './live';
 import { ALWAYS_FRESH, PRUNT_KEYS } from './queries';
@@ -36,7 +37,7 @@ export {
 
 /**
  * A Prunt machine on the session kernel: one WebSocket (`/websocket/everything`) for status,
- * logs and command progress, alive while it ticks (heartbeat: 10 s of silence is a dead socket);
+ * logs and command progress, alive while it ticks (heartbeat: 3 s of silence is a dead socket);
  * HTTP for schemas, config, files and commands. What the frames mean is `live.ts`, the config
  * editor `config.ts`, the commands `commands.ts`, the on-demand read keys `queries.ts`.
  */
@@ -63,6 +64,12 @@ export class PruntSession extends KernelSession {
   private readonly statusRead: Poller;
   private watchers = 0;
   private kickPending = false;
+  /** When this run started (an outage is measured from the last good data or this). */
+  private startedAt = 0;
+  /** The status schema read in flight (one at a time), whether to read once more after it, and its end. */
+  private schemaRead: { run: RunToken; again: boolean; done: Promise<void> } | null = null;
+  /** A retry of a failed status schema read is due (one retry loop per run). */
+  private schemaRetry: RunToken | null = null;
 
   constructor(ctx: SessionContext, opts: PruntSessionOptions = {}) {
     super(ctx);
@@ -74,12 +81,15 @@ export class PruntSession extends KernelSession {
       drafts: opts.drafts ?? defaultDraftStorage(),
       now: ctx.now,
       run: () => this.run(),
+      api: () => this.store.getState().api,
     });
     this.live = new PruntLive(ctx, this.store, this.history, this.tracker, () => this.serverRestarted());
     this.socket = this.stream(() => ({
       url: () => `${this.client.http.base}/websocket/everything`,
       // Up to 10 ticks a second on a machine page: one render per frame, none dropped.
       coalesce: true,
+      // Quick reconnects while the outage is young: back within 5 s of the fault ending.
+      backoff: quickBackoff(ctx, () => this.startedAt),
       heartbeat: {
         silenceMs: SILENCE_MS,
         firstMessageMs: SILENCE_MS,
@@ -126,6 +136,9 @@ export class PruntSession extends KernelSession {
 
   protected override onStart(): void {
     this.kickPending = false;
+    this.startedAt = this.ctx.now();
+    this.schemaRead = null;
+    this.schemaRetry = null;
     void this.connectHttp();
   }
 
@@ -136,10 +149,34 @@ export class PruntSession extends KernelSession {
     this.statusRead.kick();
   }
 
-  /** Status schema (which also tells the API generation) and the last update check. */
-  private async connectHttp(): Promise<void> {
+  /**
+   * Status schema (which also tells the API generation) and the last update check. One read at a
+   * time: asked again while one is in flight (a server restart, a socket that opened), it reads
+   * once more right after it; a failure schedules one retry, not one per caller.
+   */
+  private connectHttp(): Promise<void> {
     const run = this.run();
-    if (!run.alive()) return;
+    if (!run.alive()) return Promise.resolve();
+    if (this.schemaRead?.run.alive()) {
+      this.schemaRead.again = true;
+      return this.schemaRead.done;
+    }
+    const read = { run, again: false, done: Promise.resolve() };
+    this.schemaRead = read;
+    read.done = (async () => {
+      try {
+        do {
+          read.again = false;
+          await this.readSchema(run);
+        } while (read.again && run.alive());
+      } finally {
+        if (this.schemaRead === read) this.schemaRead = null;
+      }
+    })();
+    return read.done;
+  }
+
+  private async readSchema(run: RunToken): Promise<void> {
     try {
       const wire = await this.ctx.queries.fetch(
         PRUNT_KEYS.statusSchema,
@@ -151,16 +188,32 @@ export class PruntSession extends KernelSession {
       await this.refreshUpdateCheck();
     } catch (e) {
       if (!run.alive()) return;
-      this.tracker.fail(e);
+      // A failed request (no answer, the server's own 502, a cut answer) is the link's; an answer
+      // of another shape a protocol error. Neither is final: asked again (and on the next socket).
+      this.tracker.fail(isLinkFault(e) ? asLinkFault(e) : e);
       this.ctx.log.warn('link', `Status schema: ${describeError(e)}`);
+      if (this.schemaRetry?.alive()) return;
+      this.schemaRetry = run;
+      this.later(
+        () => {
+          this.schemaRetry = null;
+          if (!this.store.getState().statusModel) void this.connectHttp();
+        },
+        quickRetry(this.ctx, this.tracker, this.startedAt),
+      );
     }
   }
 
-  /** A new server start time: schema, update check and (when open) the config editor again. */
+  /**
+   * A new server start time: schema, update check and (when open) the config editor again, after
+   * the status schema (it says which API generation the restarted server speaks).
+   */
   private serverRestarted(): void {
-    void this.connectHttp();
-    if (this.config.getState().phase !== 'idle')
-      void this.loadConfig('The server restarted: schema and values were fetched again.');
+    const run = this.run();
+    void this.connectHttp().then(() => {
+      if (run.alive() && this.config.getState().phase !== 'idle')
+        void this.loadConfig('The server restarted: schema and values were fetched again.');
+    });
   }
 
   /** The controller's last update check ("may reply with 500 if the update check times out"). */

@@ -14,8 +14,12 @@ export const TICK_MS = 50;
 /** Fleet view: 1 per second. */
 export const FLEET_DIVISOR = 20;
 export const LIVE_RATES = [1, 2, 5, 10] as const;
-/** Prunt ticks at least once per second (fleet divisor): this much silence is a dead socket. */
-export const SILENCE_MS = 10_000;
+/**
+ * Prunt ticks at least once per second (the fleet divisor; faster on a machine page): this much
+ * silence is a dead socket, so a silent link shows as down within 5 s (issue 15: it was 10 s,
+ * and the page said "Online" 10 s into a silent network). Checked every 0.5 s.
+ */
+export const SILENCE_MS = 3000;
 
 export function divisorFor(hz: number): number {
   const h = Math.min(10, Math.max(0.1, hz));

@@ -15,6 +15,36 @@ import { z } from 'zod';
 /** Numbers: Ada images (" 1.17500000000000E+02") are valid JSON numbers; strings are coerced. */
 const num = z.coerce.number();
 
+/**
+ * Nesting a payload may have. Prunt's deepest (a module config schema) nests about 16 levels; the
+ * schemas below recurse, so a payload thousands deep would overflow the stack inside zod.
+ */
+export const MAX_DEPTH = 64;
+
+/** Whether `v` nests deeper than `limit` (iterative: a payload deeper than the stack is fine). */
+export function nestsDeeper(v: unknown, limit: number): boolean {
+  const stack: Array<{ v: unknown; d: number }> = [{ v, d: 0 }];
+  for (let item = stack.pop(); item; item = stack.pop()) {
+    const x = item.v;
+    if (typeof x !== 'object' || x === null) continue;
+    const d = item.d + 1;
+    if (d > limit) return true;
+    for (const c of Object.values(x)) stack.push({ v: c, d });
+  }
+  return false;
+}
+
+/** A top-level payload schema: too deep a payload is refused (an issue), never parsed. */
+function bounded<S extends z.ZodType>(schema: S) {
+  return z
+    .unknown()
+    .superRefine((v, ctx) => {
+      if (nestsDeeper(v, MAX_DEPTH))
+        ctx.addIssue({ code: 'custom', message: `nested deeper than ${MAX_DEPTH} levels` });
+    })
+    .pipe(schema);
+}
+
 // ---------------------------------------------------------------------------------------------
 // Config schema
 
@@ -83,6 +113,10 @@ export type ConfigSchemaWire =
 
 /** `GET /config/schema`: the generation is detected from the shape. */
 export const configSchemaSchema = z.unknown().transform((v, ctx): ConfigSchemaWire => {
+  if (nestsDeeper(v, MAX_DEPTH)) {
+    ctx.addIssue({ code: 'custom', message: `nested deeper than ${MAX_DEPTH} levels` });
+    return z.NEVER;
+  }
   if (v && typeof v === 'object' && !Array.isArray(v) && 'Prunt config version' in v) {
     const r = moduleSchemaSchema.safeParse(v);
     if (r.success) return { api: 'module', schema: r.data };
@@ -113,10 +147,12 @@ export const configErrorSchema = z.looseObject({
 export type ConfigErrorWire = z.infer<typeof configErrorSchema>;
 
 /** `GET /config/values` and the 200 reply to `POST /config/values` (which may still be a rejection). */
-export const configValuesSchema = z.looseObject({
-  Values: z.record(z.string(), z.unknown()),
-  Errors: z.array(configErrorSchema).catch([]).default([]),
-});
+export const configValuesSchema = bounded(
+  z.looseObject({
+    Values: z.record(z.string(), z.unknown()),
+    Errors: z.array(configErrorSchema).catch([]).default([]),
+  }),
+);
 export type ConfigValuesWire = z.infer<typeof configValuesSchema>;
 
 export const moduleValuesSchema = z.looseObject({
@@ -152,6 +188,10 @@ export type StatusSchemaWire =
   | { api: 'flat'; schema: z.infer<typeof flatStatusSchemaSchema> };
 
 export const statusSchemaSchema = z.unknown().transform((v, ctx): StatusSchemaWire => {
+  if (nestsDeeper(v, MAX_DEPTH)) {
+    ctx.addIssue({ code: 'custom', message: `nested deeper than ${MAX_DEPTH} levels` });
+    return z.NEVER;
+  }
   const flat = flatStatusSchemaSchema.safeParse(v);
   if (flat.success) return { api: 'flat', schema: flat.data };
   const mod = moduleStatusSchemaSchema.safeParse(v);
@@ -178,6 +218,10 @@ export type FlatStatusValues = z.infer<typeof flatStatusSchema>;
 
 /** `GET /status/values`: flat API wraps it in `{"Status":…}`. */
 export const statusValuesSchema = z.unknown().transform((v, ctx) => {
+  if (nestsDeeper(v, MAX_DEPTH)) {
+    ctx.addIssue({ code: 'custom', message: `nested deeper than ${MAX_DEPTH} levels` });
+    return z.NEVER;
+  }
   if (v && typeof v === 'object' && 'Status' in v) {
     const r = flatStatusSchema.safeParse((v as { Status: unknown }).Status);
     if (r.success) return { api: 'flat' as const, values: r.data };
@@ -255,7 +299,7 @@ const wsObject = z.looseObject({
 });
 
 /** One WebSocket frame → a message, or a zod error (the caller logs it as a protocol problem). */
-export const wsMessageSchema = wsObject.transform((m): WsMessage => {
+export const wsMessageSchema = bounded(wsObject).transform((m): WsMessage => {
   if (m.Server_Start_Time !== undefined) return { type: 'start', startTime: m.Server_Start_Time.trim() };
   if (m.Status_Values !== undefined) {
     return {

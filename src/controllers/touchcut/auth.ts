@@ -4,6 +4,7 @@ import { describeError, LinkError } from '../../fleet/errors';
 import type { RunToken } from '../../fleet/kernel';
 import type { MachineLog } from '../../fleet/log';
 import { isNotReady, type TouchcutClient } from './client';
+import { authRetryDelay } from '../../fleet/faults';
 import { authFromHeld, KEY_AUTH, type TouchcutState } from './state';
 import type { HeldLoginWire } from './wire';
 
@@ -26,11 +27,23 @@ export interface AuthHost {
   run: () => RunToken;
   /** Ask the machine again now (status, screen): access changed. */
   resume: () => void;
+  now: () => number;
 }
+
+/** Why the machine needs a login when TouchCut refused the gateway's API key, and what to do. */
+export const KEY_REFUSED =
+  'TouchCut refused the console\'s API key (HTTP 401): the console has no accepted API key for this machine. Check its "apiKey" in the machines file and that the key\'s user group has web access, or log in with a TouchCut user. The key is tried again on its own, at most once a minute.';
 
 export class TouchcutAuth {
   /** Bumped by every login and logout here: a login state read before one is stale. */
   private version = 0;
+  /**
+   * The gateway's API key was refused: tries of it so far, and when the next one is due (null:
+   * none). The key is the gateway's, not a user's, so it is tried again on its own, slowly
+   * (`authRetryDelay`: a few quick tries, then once a minute). A typed login never is.
+   */
+  private keyRefusals = 0;
+  private keyRetryAt: number | null = null;
 
   constructor(private readonly h: AuthHost) {}
 
@@ -101,23 +114,47 @@ export class TouchcutAuth {
     }
   }
 
-  /** A 401 from any request: the machine needs a login; nothing is asked until the user acts. */
+  /**
+   * A 401 from any request: the machine needs a login. A user login that expired or was revoked
+   * waits for someone to log in again (nothing is asked of TouchCut meanwhile, nothing is retried
+   * on the user's behalf). Without a user login the credentials are the gateway's API key: it is
+   * tried again on its own, slowly (`retryDue`), while the page says the key was refused and what
+   * to do.
+   */
   failed(e: unknown): void {
     const { store, tracker } = this.h;
     if (!this.h.run().alive()) return;
     const { mode, user } = store.getState().auth;
-    const reason =
-      mode === 'user'
-        ? `The TouchCut login of ${user ?? 'the user'} expired or was revoked: log in again`
-        : 'TouchCut refused the request: the console has no accepted API key for this machine (or the key lacks web access). Log in with a TouchCut user.';
+    let reason: string;
+    if (mode === 'user') {
+      reason = `The TouchCut login of ${user ?? 'the user'} expired or was revoked: log in again`;
+      this.keyRetryAt = null;
+    } else {
+      reason = KEY_REFUSED;
+      this.keyRetryAt = this.h.now() + authRetryDelay(this.keyRefusals++);
+    }
     store.setState({ auth: { ...KEY_AUTH, reason } });
     const err = e instanceof LinkError ? new LinkError('http', reason, { status: 401 }) : e;
     tracker.fail(err, { needsLogin: true });
-    tracker.patch({ activity: 'unknown', activityLabel: 'Needs login' });
+    tracker.patch({ activity: 'unknown', activityLabel: 'Needs login', retryAt: this.keyRetryAt });
+  }
+
+  /** The refused API key is due to be tried again (a status read may go while "needs login"). */
+  retryDue(): boolean {
+    return this.keyRetryAt !== null && this.h.now() >= this.keyRetryAt;
+  }
+
+  /** TouchCut accepted a request: the key (or login) works; the retries start over next time. */
+  accepted(): void {
+    this.keyRefusals = 0;
+    this.keyRetryAt = null;
+    const { store } = this.h;
+    if (store.getState().auth.reason !== null) store.setState((s) => ({ auth: { ...s.auth, reason: null } }));
   }
 
   private resume(): void {
     if (!this.h.run().alive()) return;
+    this.keyRetryAt = null;
     this.h.tracker.patch({ link: 'connecting', problem: null, retryAt: null });
     this.h.resume();
   }

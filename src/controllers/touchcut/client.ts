@@ -1,6 +1,14 @@
 import { LinkError } from '../../fleet/errors';
-import { HttpClient, parseJsonLenient, NOT_JSON, preview, type QueryValue } from '../../fleet/http';
+import {
+  connectionLost,
+  HttpClient,
+  parseJsonLenient,
+  NOT_JSON,
+  preview,
+  type QueryValue,
+} from '../../fleet/http';
 import { CONSOLE_HEADERS } from '../../fleet/origin';
+import { gatewayBodyError, fromGateway } from '../../fleet/faults';
 import { LOGIN_PATH } from './gateway';
 import {
   errorBodySchema,
@@ -133,8 +141,9 @@ export function isNotReady(e: unknown): boolean {
   return e instanceof LinkError && e.vendorCode === '100';
 }
 
+/** TouchCut itself answered 401 (the console server's own 401 — no console login — is not TouchCut's). */
 export function isUnauthorized(e: unknown): boolean {
-  return e instanceof LinkError && e.status === 401;
+  return e instanceof LinkError && e.status === 401 && !fromGateway(e);
 }
 
 /** Rewrites a 403 into "which action needs which privilege". */
@@ -191,6 +200,14 @@ function unitsParam(u: UnitsChoice | undefined): QueryValue {
   return u && u !== 'default' ? u : undefined;
 }
 
+/**
+ * A request's own timeout. The gateway reaches TouchCut over HTTPS with a new connection per
+ * request (its sharing declaration: keep-alive off): under 2 s latency each way that is a TCP
+ * handshake, a TLS handshake (one or two round trips) and the request, 12 to 16 s. A silent link
+ * is shown long before (the session's liveness window); this only ends the wait.
+ */
+export const REQUEST_TIMEOUT_MS = 20_000;
+
 export class TouchcutClient {
   readonly http: HttpClient;
 
@@ -200,8 +217,10 @@ export class TouchcutClient {
   ) {
     this.http = new HttpClient({
       machineId,
-      timeoutMs: opts.timeoutMs ?? 8000,
-      parseError: parseTouchcutError,
+      timeoutMs: opts.timeoutMs ?? REQUEST_TIMEOUT_MS,
+      // The console server's own failure body first: its 502 or 401 is never TouchCut's answer.
+      parseError: (status, body, text) =>
+        gatewayBodyError(status, body) ?? parseTouchcutError(status, body, text),
     });
   }
 
@@ -271,7 +290,7 @@ export class TouchcutClient {
    * the HTTP status): non-2xx goes through the same error parser, anything that is not a PNG is a
    * protocol error. Rate limiting is the caller's job (ScreenshotFeed).
    */
-  async screenshot(signal?: AbortSignal, timeoutMs = 10_000): Promise<Screenshot> {
+  async screenshot(signal?: AbortSignal, timeoutMs = REQUEST_TIMEOUT_MS): Promise<Screenshot> {
     const path = `${REST}/screenshot`;
     const ctrl = new AbortController();
     let timedOut = false;
@@ -292,16 +311,14 @@ export class TouchcutClient {
       } catch (e) {
         if (timedOut) throw new LinkError('timeout', `No answer from ${path} within ${timeoutMs / 1000} s`);
         if (signal?.aborted) throw new LinkError('aborted', 'Request cancelled');
-        throw new LinkError(
-          'network',
-          `Cannot reach the controller (${e instanceof Error ? e.message : String(e)})`,
-        );
+        throw new LinkError('network', connectionLost(e instanceof Error ? e.message : String(e)));
       }
       const bytes = new Uint8Array(await res.arrayBuffer());
       if (!res.ok) {
         const text = new TextDecoder().decode(bytes.slice(0, 2000));
         const body = parseJsonLenient(text);
         throw (
+          gatewayBodyError(res.status, body) ??
           parseTouchcutError(res.status, body === NOT_JSON ? null : body, text) ??
           new LinkError('http', `HTTP ${res.status} from ${path}`, { status: res.status })
         );

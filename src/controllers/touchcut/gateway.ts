@@ -77,9 +77,8 @@ export function tokenOf(body: string): string | null {
 export function withoutToken(body: string): string {
   const o = objectOf(body);
   if (!o) return body;
-  const out: Record<string, unknown> = {};
-  for (const [k, v] of Object.entries(o)) if (!isTokenField(k)) out[k] = v;
-  return JSON.stringify(out);
+  // Own keys kept as data (fromEntries defines them: a `__proto__` key is not a prototype).
+  return JSON.stringify(Object.fromEntries(Object.entries(o).filter(([k]) => !isTokenField(k))));
 }
 
 function json(status: number, body: unknown): UpstreamAnswer {

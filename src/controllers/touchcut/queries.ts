@@ -133,12 +133,26 @@ export interface OpenDataParams {
 
 export type OpenDataState = ReadView<OpenData> & OpenDataParams;
 
-/** Deep merge for `onlyChangedData` refreshes: objects merge key by key, arrays and values replace. */
-export function mergeChanged(base: unknown, changed: unknown): unknown {
-  if (!base || !changed || typeof base !== 'object' || typeof changed !== 'object') return changed;
-  if (Array.isArray(base) || Array.isArray(changed)) return changed;
-  const out: Record<string, unknown> = { ...(base as Record<string, unknown>) };
-  for (const [k, v] of Object.entries(changed as Record<string, unknown>)) out[k] = mergeChanged(out[k], v);
+/** Deeper than this a changed object replaces the page's whole (a page is never this deep). */
+const MERGE_DEPTH = 64;
+
+function isRecord(v: unknown): v is Record<string, unknown> {
+  return typeof v === 'object' && v !== null && !Array.isArray(v);
+}
+
+/**
+ * Deep merge for `onlyChangedData` refreshes: objects merge key by key, arrays and values replace.
+ * The answer is untrusted: own keys only, each kept as data (`__proto__` too: never a prototype),
+ * and the walk stops at MERGE_DEPTH (never past the stack).
+ */
+export function mergeChanged(base: unknown, changed: unknown, depth = 0): unknown {
+  if (!isRecord(base) || !isRecord(changed) || depth >= MERGE_DEPTH) return changed;
+  const out: Record<string, unknown> = {};
+  const put = (k: string, v: unknown) =>
+    Object.defineProperty(out, k, { value: v, enumerable: true, writable: true, configurable: true });
+  for (const [k, v] of Object.entries(base)) put(k, v);
+  for (const [k, v] of Object.entries(changed))
+    put(k, mergeChanged(Object.hasOwn(base, k) ? base[k] : undefined, v, depth + 1));
   return out;
 }
 

@@ -1,10 +1,11 @@
-import { describeError } from '../../fleet/errors';
+import { describeError, LinkError } from '../../fleet/errors';
 import { KernelSession } from '../../fleet/kernel';
-import { backoffDelay } from '../../fleet/link';
+import { backoffDelay, HIDDEN_POLL_MS } from '../../fleet/link';
 import type { MachineSnapshot } from '../../fleet/types';
 import { TouchcutAuth } from './auth';
-import { isNotReady, isUnauthorized, TouchcutClient } from './client';
+import { isNotReady, isUnauthorized, REQUEST_TIMEOUT_MS, TouchcutClient } from './client';
 import { touchcutCommands } from './commands';
+import { asLinkFault, Liveness, quickRetry } from '../../fleet/faults';
 import { MonitorFeed, ScreenshotFeed, type FeedHost } from './feeds';
 import { identityOf, snapshotPatch, type JobClock } from './normalize';
 import { OpenDataFeed, StatsLoader, type ReadHost } from './queries';
@@ -24,6 +25,21 @@ const NOT_READY_RETRY_MS = 2000;
  * The gateway answers it itself; nothing reaches the controller.
  */
 export const LOGIN_STATE_INTERVAL_MS = 15_000;
+/**
+ * Status is read once a second: no good answer for this long is a silent link, shown as down at
+ * once (the request itself may wait up to its timeout, client.ts REQUEST_TIMEOUT_MS; a slow answer
+ * still counts when it comes). While the page is hidden the poll slows to 10 s or more, and the
+ * window grows with it.
+ */
+export const LIVENESS_MS = 4000;
+/**
+ * A slow link that still delivers is not silence: the window is at least the poll period and this
+ * many times the slowest of the last status answers (SLOW_ANSWERS of them), so answers that take
+ * 4 s (2 s latency each way) or 16 s (and TCP and TLS handshakes) keep the link online. It is back
+ * to LIVENESS_MS a few answers after the link is fast again.
+ */
+export const SLOW_ANSWER_FACTOR = 1.5;
+const SLOW_ANSWERS = 4;
 
 /**
  * A TouchCut machine at run time, on the session kernel. It polls `status` once a second and
@@ -69,14 +85,36 @@ export class TouchcutSession extends KernelSession {
       this.status.kick();
       this.screenshot.kick();
     },
+    now: this.ctx.now,
+  });
+  /** When this run started (an outage is measured from the last good data or this). */
+  private startedAt = 0;
+  /** How long the last status answers took (SLOW_ANSWERS of them): the window grows on a slow link. */
+  private answerMs: number[] = [];
+  /** When the status read in flight was sent. */
+  private statusSentAt = 0;
+  /** Status must answer within its window (LIVENESS_MS, more on a slow link). */
+  private readonly liveness = new Liveness({
+    life: this.life,
+    now: this.ctx.now,
+    windowMs: () => {
+      const slow = STATUS_INTERVAL_MS + Math.max(0, ...this.answerMs) * SLOW_ANSWER_FACTOR;
+      const window = Math.min(Math.max(LIVENESS_MS, slow), REQUEST_TIMEOUT_MS + LIVENESS_MS);
+      return this.ctx.visibility.hidden() ? HIDDEN_POLL_MS + window : window;
+    },
+    onSilent: (quiet) => this.silent(quiet),
   });
   private clock: JobClock = { name: null, startedAt: null, lastProgress: null };
   private infoFailures = 0;
 
   private readonly status = this.poll({
     name: 'status',
-    when: this.host.canRequest,
-    read: (signal) => this.client.status(this.host.units(), signal),
+    // While "needs login" only when the gateway's refused key is due to be tried again.
+    when: () => this.host.canRequest() || (this.started && this.auth.retryDue()),
+    read: (signal) => {
+      this.statusSentAt = this.ctx.now();
+      return this.client.status(this.host.units(), signal);
+    },
     apply: (status) => this.applyStatus(status),
     intervalMs: () => STATUS_INTERVAL_MS,
     failed: (e) => this.statusFailed(e),
@@ -111,6 +149,9 @@ export class TouchcutSession extends KernelSession {
   });
 
   protected override onStart(): void {
+    this.startedAt = this.ctx.now();
+    this.answerMs = [];
+    this.liveness.start();
     // A units change reads the status again at once, in the new units.
     this.life.onStop(touchcutUnits.subscribe(() => this.status.kick()));
     this.screenshot.kick();
@@ -147,11 +188,17 @@ export class TouchcutSession extends KernelSession {
     const { patch, clock } = snapshotPatch(status, before, this.clock, now);
     const prev = this.store.getState().status;
     this.clock = clock;
+    this.answerMs.push(now - this.statusSentAt);
+    if (this.answerMs.length > SLOW_ANSWERS) this.answerMs.shift();
+    this.liveness.heard();
+    this.auth.accepted();
     this.tracker.ok(patch);
     this.store.setState({ status, statusAt: now, notice: null });
     this.logChanges(prev, before, status);
     // Back online with no identity yet: ask now rather than at the end of a long backoff.
     if (before.link !== 'online' && this.store.getState().info === null) this.info.kick();
+    // Back from "needs login" by a retry of the key: the screen feed waits for a kick.
+    if (before.link === 'needs-login') this.screenshot.kick();
   }
 
   /** Each change of the machine state and each new message, once, in the machine's log. */
@@ -175,7 +222,19 @@ export class TouchcutSession extends KernelSession {
       this.tracker.patch({ link: 'connecting', activity: 'unknown', activityLabel: 'TouchCut is starting…' });
       return NOT_READY_RETRY_MS;
     }
-    return this.tracker.fail(e);
+    this.tracker.fail(asLinkFault(e));
+    // Quick retries while the outage is young: back within 5 s of the fault ending.
+    return quickRetry(this.ctx, this.tracker, this.startedAt);
+  }
+
+  /** Status did not answer within its window: the link is in doubt now, not at the timeout. */
+  private silent(quietMs: number): void {
+    if (this.tracker.state !== 'online') return;
+    this.tracker.fail(
+      new LinkError('timeout', `TouchCut has not answered for ${Math.round(quietMs / 1000)} s`),
+    );
+    // The read in flight is still waiting for its answer: no "next try" time to show.
+    this.tracker.patch({ retryAt: null });
   }
 }
 

@@ -218,11 +218,22 @@ export interface IoGroups {
 export const ioSchema = z.preprocess((v) => {
   if (v === null || v === undefined) return {};
   if (Array.isArray(v)) {
+    // Own keys only, kept as data: a group named `__proto__`, `constructor` or `toString` is just
+    // an unknown group (never a prototype, never an inherited function to spread).
     const merged: Record<string, unknown[]> = {};
     for (const part of v) {
       if (part && typeof part === 'object' && !Array.isArray(part)) {
         for (const [k, items] of Object.entries(part as Record<string, unknown>)) {
-          merged[k] = [...(merged[k] ?? []), ...(Array.isArray(items) ? items : [items])];
+          const group = Object.hasOwn(merged, k) ? merged[k] : undefined;
+          const more: unknown[] = Array.isArray(items) ? items : [items];
+          if (group) for (const item of more) group.push(item);
+          else
+            Object.defineProperty(merged, k, {
+              value: [...more],
+              enumerable: true,
+              writable: true,
+              configurable: true,
+            });
         }
       }
     }

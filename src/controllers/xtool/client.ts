@@ -8,6 +8,7 @@ import {
   type RequestOptions,
   type UploadProgress,
 } from '../../fleet/http';
+import { gatewayBodyError, isLinkFault } from '../../fleet/faults';
 import {
   devNameSchema,
   dotModeSchema,
@@ -59,14 +60,36 @@ export const SYSTEM_PARAM: Record<
   setFlameAlarmSensitivity: 'flameAlarmSensitivity',
 };
 
+/**
+ * A read's own timeout. Under 2 s latency each way a request takes 8 s: the gateway opens a new
+ * TCP connection per request (keep-alive off, sharing.ts), one round trip, then the request's.
+ * A silent link is shown long before (the session's liveness window); this only ends the wait.
+ */
+export const READ_TIMEOUT_MS = 12_000;
+
 export class XtoolClient {
   readonly http: HttpClient;
+  /**
+   * Called with the time the request took whenever the laser answered (any status, any body that
+   * came whole): the session's liveness. A failed request (no answer, the console server's own
+   * failure, a 5xx, a cut answer) is not an answer.
+   */
+  onAnswer: ((ms: number) => void) | null = null;
+  /**
+   * Called on each progress event of an upload (the bytes go through; the polls wait behind it in
+   * the lane; only where there is an XMLHttpRequest, the browser) and when it is answered.
+   */
+  onTransfer: (() => void) | null = null;
+  private readonly now: () => number;
 
-  constructor(machineId: string, opts: { timeoutMs?: number } = {}) {
+  constructor(machineId: string, opts: { timeoutMs?: number; now?: () => number } = {}) {
+    this.now = opts.now ?? Date.now;
     this.http = new HttpClient({
       machineId,
-      timeoutMs: opts.timeoutMs ?? 5000,
-      parseError: parseXtoolError,
+      timeoutMs: opts.timeoutMs ?? READ_TIMEOUT_MS,
+      // The console server's own failure body first: its 502 is never the laser's answer.
+      parseError: (status, body, text) =>
+        gatewayBodyError(status, body) ?? parseXtoolError(status, body, text),
     });
   }
 
@@ -112,13 +135,16 @@ export class XtoolClient {
     return this.json({ path: '/list', query: { dir }, signal }, listSchema);
   }
 
-  /** Raw answer of any path, for telling other xTool models apart (never throws on vendor words). */
+  /**
+   * Raw answer of any path, for telling other xTool models apart (never throws on the device's own
+   * words; a failed request — no answer, the console server's failure, a 5xx — is thrown).
+   */
   async probe(path: string, signal?: AbortSignal): Promise<string> {
     try {
       const r = await this.lane(() => this.http.raw({ path, signal }), signal);
       return `${path} → ${r.status}: ${r.text.trim().slice(0, 300)}`;
     } catch (e) {
-      if (e instanceof LinkError && (e.kind === 'http' || e.kind === 'vendor'))
+      if (e instanceof LinkError && !isLinkFault(e) && (e.kind === 'http' || e.kind === 'vendor'))
         return `${path} → ${e.message}`;
       throw e;
     }
@@ -226,21 +252,28 @@ export class XtoolClient {
   ): Promise<RawResponse> {
     const form = new FormData();
     form.append('file', file, filename);
-    return this.lane(async () => {
-      if (typeof globalThis.XMLHttpRequest === 'undefined') {
-        const r = await this.http.raw({ method: 'POST', path, query, body: form, commandId, timeoutMs });
-        onProgress?.({ loaded: file.size, total: file.size });
-        return r;
-      }
-      return uploadWithProgress({
-        method: 'POST',
-        url: this.http.url(path, query),
-        body: form,
-        headers: { 'X-Shopdeck-Command': commandId },
-        onProgress,
-        timeoutMs,
-      });
-    });
+    return this.lane(
+      async () => {
+        if (typeof globalThis.XMLHttpRequest === 'undefined') {
+          const r = await this.http.raw({ method: 'POST', path, query, body: form, commandId, timeoutMs });
+          onProgress?.({ loaded: file.size, total: file.size });
+          return r;
+        }
+        return uploadWithProgress({
+          method: 'POST',
+          url: this.http.url(path, query),
+          body: form,
+          headers: { 'X-Shopdeck-Command': commandId },
+          onProgress: (p) => {
+            this.onTransfer?.();
+            onProgress?.(p);
+          },
+          timeoutMs,
+        });
+      },
+      undefined,
+      true,
+    );
   }
 
   /**
@@ -252,14 +285,23 @@ export class XtoolClient {
   inFlight = 0;
   maxInFlight = 0;
 
-  private lane<T>(run: () => Promise<T>, signal?: AbortSignal): Promise<T> {
+  /** `transfer`: an upload, whose time says how big the file is, not how slow the link: not an answer time. */
+  private lane<T>(run: () => Promise<T>, signal?: AbortSignal, transfer = false): Promise<T> {
     const go = async () => {
       // Cancelled while waiting its turn (the session stopped, the view went away): never sent.
       if (signal?.aborted) throw new LinkError('aborted', 'Request cancelled');
       this.inFlight++;
       this.maxInFlight = Math.max(this.maxInFlight, this.inFlight);
+      const sentAt = this.now();
+      const answered = () => (transfer ? this.onTransfer?.() : this.onAnswer?.(this.now() - sentAt));
       try {
-        return await run();
+        const r = await run();
+        answered();
+        return r;
+      } catch (e) {
+        // The laser's own words (a refusal, a 404, JSON of another shape) are an answer too.
+        if (e instanceof LinkError && e.kind !== 'aborted' && !isLinkFault(e)) answered();
+        throw e;
       } finally {
         this.inFlight--;
       }

@@ -6,7 +6,7 @@ import { alwaysVisible } from '../../fleet/link';
 import { simulatorHandlers } from '../../fleet/msw';
 import { FaultySimulator, jsonResponse, type Simulator } from '../../fleet/sim';
 import type { Role } from '../../fleet/types';
-import { POLL_BUSY_MS, POLL_IDLE_MS, SETTINGS_REFRESH_MS, XtoolSession } from './session';
+import { POLL_BUSY_MS, POLL_IDLE_MS, RECHECK_MAX_MS, SETTINGS_REFRESH_MS, XtoolSession } from './session';
 import { XtoolSimulator } from './sim/simulator';
 
 const server = setupServer();
@@ -135,7 +135,7 @@ describe('XtoolSession against the simulator', () => {
     expect(commandHistory.getState().records.filter((r) => r.machineId === ctx.machine.id)).toEqual([]);
   });
 
-  it('polls every 3 s while busy and every 10 s when idle', async () => {
+  it('polls every 3 s, busy or idle (the poll is the liveness: issue 15)', async () => {
     const { sim, session } = setup();
     session.start();
     await until(() => session.detail.getState().socketOpen);
@@ -272,13 +272,17 @@ describe('XtoolSession against the simulator', () => {
 });
 
 describe('link and firmware', () => {
-  it('a malformed answer is a protocol error naming where it failed', async () => {
+  it('a malformed (cut) answer is a failed request, not a verdict: the link is down, then back', async () => {
     const { session, ctx, served } = setup({ wrap: (s) => new FaultySimulator(s) });
     session.start();
     await until(() => ctx.snapshot.getState().link === 'online');
     (served as FaultySimulator).setFaults({ malformed: true });
-    await until(() => ctx.snapshot.getState().link === 'protocol-error', 30_000);
-    expect(ctx.snapshot.getState().problem).toMatchObject({ kind: 'protocol', path: '(root)' });
+    await until(() => ctx.snapshot.getState().link === 'offline', 30_000);
+    expect(ctx.snapshot.getState().problem).toMatchObject({ kind: 'network' });
+    expect(ctx.snapshot.getState().problem?.message).toMatch(/cut off.*not JSON/);
+    (served as FaultySimulator).setFaults({ malformed: false });
+    await until(() => ctx.snapshot.getState().link === 'online', 5000);
+    // A whole answer of another shape is a protocol error naming its path: faults.test.ts.
   });
 
   it('polls at most every 10 s while the page is hidden, even with a job running', async () => {
@@ -395,9 +399,13 @@ describe('other xTool models', () => {
     const answered = session.detail.getState().model.answered.join('\n');
     expect(answered).toMatch(/invalid request/);
     expect(answered).toMatch(/P_IDLE/);
-    // It stopped talking to the device.
+    // It is asked again now and then (RECHECK_*), not every poll: the verdict is not final.
     const polls = session.poller.started;
-    await advance(POLL_IDLE_MS * 2);
+    await advance(POLL_IDLE_MS);
     expect(session.poller.started).toBe(polls);
+    await advance(RECHECK_MAX_MS * 3);
+    expect(session.poller.started).toBeGreaterThan(polls);
+    expect(session.poller.started - polls).toBeLessThanOrEqual(6);
+    expect(ctx.snapshot.getState().link).toBe('protocol-error');
   });
 });

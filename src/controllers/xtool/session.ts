@@ -1,11 +1,12 @@
 import type { AnyCommand } from '../../fleet/commands';
 import type { SessionContext } from '../../fleet/contract';
 import { LinkError } from '../../fleet/errors';
-import { createSharedStore, KernelSession } from '../../fleet/kernel';
-import type { Poller, SocketLink } from '../../fleet/link';
+import { createSharedStore, KernelSession, type RunToken } from '../../fleet/kernel';
+import { backoffDelay, HIDDEN_POLL_MS, type Poller, type SocketLink } from '../../fleet/link';
 import { machineBase } from '../../fleet/origin';
-import { XtoolClient } from './client';
+import { READ_TIMEOUT_MS, XtoolClient } from './client';
 import { xtoolCommands, type CommandHost, type XtoolCommands } from './commands';
+import { asLinkFault, isLinkFault, Liveness, quickRetry } from '../../fleet/faults';
 import {
   identityLine,
   initialDetail,
@@ -23,9 +24,35 @@ export { initialDetail } from './model';
 export type { UploadArgs } from './upload';
 export { SETTINGS_REFRESH_MS } from './queries';
 
-/** Poll intervals (issue 4): every 3 s while a job is loaded or running, every 10 s when idle. */
+/**
+ * Poll intervals: every 3 s while a job is loaded or running (issue 4), and every 3 s when idle
+ * too (issue 15: it was 10 s). The status frames are rare, so the poll is the laser's liveness, and
+ * a silent link must show as down within 5 s; two small reads every 3 s is what the ESP32 already
+ * answers while it runs a job, and the gateway shares them among viewers (sharing.ts).
+ */
 export const POLL_BUSY_MS = 3000;
-export const POLL_IDLE_MS = 10_000;
+export const POLL_IDLE_MS = 3000;
+/**
+ * The liveness window: nothing heard from the laser for this long (a poll every 3 s, each of its
+ * answers counts) is a silent link, shown as down at once, without waiting for the request's own
+ * timeout (client.ts READ_TIMEOUT_MS). While the page is hidden the poll runs every 10 s or more,
+ * and the window grows with it.
+ */
+export const LIVENESS_MS = 4500;
+/**
+ * A slow link that still delivers is not silence: the window is at least the poll period and this
+ * many times the slowest of the last answers (SLOW_ANSWERS of them), so answers that take 4 s (2 s
+ * latency each way) or 8 s (and a new connection per request) keep the link online. It is back to
+ * LIVENESS_MS a few answers after the link is fast again.
+ */
+export const SLOW_ANSWER_FACTOR = 1.5;
+const SLOW_ANSWERS = 4;
+/**
+ * A laser that answered, whole, that it is not a D-series is asked again on this backoff (from
+ * 5 s up to a minute): the verdict is re-checked, never final (a swapped or re-flashed device).
+ */
+export const RECHECK_BASE_MS = 5000;
+export const RECHECK_MAX_MS = 60_000;
 /**
  * The status socket's heartbeat policy. The laser speaks on :8081 only when its state changes
  * (nothing on connect, no ping it answers), so silence proves nothing either way: a healthy
@@ -48,9 +75,15 @@ type PollResult =
   | { kind: 'connected'; type: string; identity: Omit<Identity, 'type'>; status: StatusRead }
   | { kind: 'unsupported'; type: string | null; answered: string[] };
 
-/** It answered, if only in words or with a body we cannot read: something is there to identify. */
+/**
+ * The laser itself answered, whole, if only in words (`{"result":"invalid request"}`), a 404, or
+ * JSON of another shape: something is there to identify. A request that failed (no answer, a
+ * timeout, the console server's own 502/503/504, a 5xx, a cut answer) is not an answer: it is a
+ * link problem and never leads to a verdict.
+ */
 function answered(e: unknown): e is LinkError {
-  return e instanceof LinkError && (e.kind === 'http' || e.kind === 'vendor' || e.kind === 'protocol');
+  if (!(e instanceof LinkError) || isLinkFault(e)) return false;
+  return e.kind === 'http' || e.kind === 'vendor' || e.kind === 'protocol';
 }
 
 /**
@@ -73,6 +106,15 @@ export class XtoolSession extends KernelSession {
   private opened: SocketLink | null = null;
   /** Counts the commands whose effect the laser accepted (a poll begun before one is older). */
   private commandsSeen = 0;
+  /** When this run started (an outage is measured from the last good data or this). */
+  private startedAt = 0;
+  /** Re-checks of a laser that said it is not a D-series, and the delay before the next one. */
+  private rechecks = 0;
+  private recheckMs = RECHECK_BASE_MS;
+  /** The laser must be heard within its window (LIVENESS_MS): the laser's frames are rare. */
+  private readonly liveness: Liveness;
+  /** How long the last answers took (SLOW_ANSWERS of them): the window grows on a slow link. */
+  private answerMs: number[] = [];
 
   readonly pause: XtoolCommands['pause'];
   readonly resume: XtoolCommands['resume'];
@@ -97,7 +139,12 @@ export class XtoolSession extends KernelSession {
 
   constructor(ctx: SessionContext) {
     super(ctx);
-    this.client = new XtoolClient(ctx.machine.id);
+    this.client = new XtoolClient(ctx.machine.id, { now: ctx.now });
+    this.client.onAnswer = (ms) => this.heard(ms);
+    // An upload holds the lane: its progress is the laser taking the bytes, not silence.
+    this.client.onTransfer = () => {
+      if (this.life.running) this.liveness.heard();
+    };
     const host: CommandHost = {
       ctx,
       client: this.client,
@@ -115,8 +162,19 @@ export class XtoolSession extends KernelSession {
       read: (signal) =>
         this.connected ? this.readStatus(signal).then(statusOnly) : this.readConnect(signal),
       apply: (r) => this.applyRead(r),
-      intervalMs: () => (isBusy(this.detail.getState().machine.state) ? POLL_BUSY_MS : POLL_IDLE_MS),
+      intervalMs: () => (this.rechecking() ? this.recheckMs : this.period()),
       failed: (e) => this.pollFailed(e),
+    });
+    this.liveness = new Liveness({
+      life: this.life,
+      now: ctx.now,
+      windowMs: () => {
+        // The gap between two answers on a slow link: the period after one poll, then an answer.
+        const slow = this.period() + Math.max(0, ...this.answerMs) * SLOW_ANSWER_FACTOR;
+        const window = Math.min(Math.max(LIVENESS_MS, slow), READ_TIMEOUT_MS + LIVENESS_MS);
+        return ctx.visibility.hidden() ? HIDDEN_POLL_MS + window : window;
+      },
+      onSilent: (quiet) => this.silent(quiet),
     });
     this.socket = this.stream(() => ({
       url: () => `${machineBase(this.machine.id)}/`,
@@ -169,7 +227,20 @@ export class XtoolSession extends KernelSession {
   protected override onStart(): void {
     this.connected = false;
     this.opened = null;
+    this.startedAt = this.ctx.now();
+    this.rechecks = 0;
+    this.answerMs = [];
     this.detail.setState({ socketOpen: false });
+    this.liveness.start();
+  }
+
+  /** A laser that said it is another model: asked again on the recheck backoff only. */
+  private rechecking(): boolean {
+    return !this.connected && this.detail.getState().model.family === 'unsupported';
+  }
+
+  private period(): number {
+    return isBusy(this.detail.getState().machine.state) ? POLL_BUSY_MS : POLL_IDLE_MS;
   }
 
   /** Poll now, or right after the poll in flight (a command or an acknowledgement changed things). */
@@ -203,7 +274,8 @@ export class XtoolSession extends KernelSession {
     }
     const optional = <T>(what: string, p: Promise<T>): Promise<T | null> =>
       p.catch((e: unknown) => {
-        if (e instanceof LinkError && (e.kind === 'vendor' || e.kind === 'protocol')) {
+        // The laser said it has no such value; a failed request is the link's, not "no value".
+        if (e instanceof LinkError && !isLinkFault(e) && (e.kind === 'vendor' || e.kind === 'protocol')) {
           if (run.alive()) this.ctx.log.warn('protocol', `${what}: ${e.message}`);
           return null;
         }
@@ -229,9 +301,11 @@ export class XtoolSession extends KernelSession {
 
   /** get_working_sta + /progress; while the laser is idle, the settings when they are stale. */
   private async readStatus(signal: AbortSignal): Promise<StatusRead> {
+    const run = this.run();
     const startedAt = this.ctx.now();
     const commands = this.commandsSeen;
     const working = await this.client.workingSta(signal);
+    this.confirm(run, working, startedAt, commands);
     const progress = await this.client.progress(signal);
     const s = this.detail.getState();
     if (this.connected && !isBusy(applyPoll(s.machine, working.code, progress, s.progress).state)) {
@@ -240,12 +314,38 @@ export class XtoolSession extends KernelSession {
     return { working, progress, startedAt, commands };
   }
 
+  /** The laser answered (client.ts onAnswer): it is heard, and how long it took sizes the window. */
+  private heard(ms: number): void {
+    if (!this.life.running) return;
+    this.answerMs.push(ms);
+    if (this.answerMs.length > SLOW_ANSWERS) this.answerMs.shift();
+    this.liveness.heard();
+  }
+
+  /**
+   * The working state answered, and it is what the laser said last time (nothing newer came
+   * meanwhile): the state shown is confirmed now. On a slow link /progress comes seconds later; a
+   * late answer is still data. A change waits for /progress (the state may depend on it).
+   */
+  private confirm(run: RunToken, working: WorkingSta, startedAt: number, commands: number): void {
+    if (!this.connected || !run.alive()) return;
+    // Fresh data while online, or the end of a silence or a timeout; a failure of another kind
+    // (a protocol error of /progress, a refusal) ends only with a whole poll.
+    const link = this.ctx.snapshot.getState();
+    if (link.link !== 'online' && link.problem?.kind !== 'timeout') return;
+    const s = this.detail.getState();
+    if (s.working?.code !== working.code || this.commandsSeen !== commands) return;
+    if (s.lastFrame !== null && s.lastFrame.at >= startedAt) return;
+    this.tracker.ok(snapshotOf(s));
+  }
+
   private applyRead(r: PollResult): void {
     switch (r.kind) {
       case 'status':
         this.applyStatus(r.status);
         return;
       case 'connected':
+        this.rechecks = 0;
         this.detail.setState((s) => ({
           model: { family: 'd-series', answered: [] },
           identity: { ...s.identity, ...r.identity, type: r.type },
@@ -281,37 +381,54 @@ export class XtoolSession extends KernelSession {
     else this.tracker.patch(snap);
   }
 
-  /** Another xTool model: say so with what it answered, and stop talking to it. */
+  /**
+   * Another xTool model (a complete answer of its own said so): say so with what it answered, and
+   * ask again on a slow backoff (RECHECK_*): the verdict is re-checked, never final.
+   */
   private unsupported(type: string | null, lines: string[]): void {
+    this.recheckMs = backoffDelay(this.rechecks++, { baseMs: RECHECK_BASE_MS, maxMs: RECHECK_MAX_MS });
     this.detail.setState((s) => ({
       model: { family: 'unsupported', answered: lines },
       identity: { ...s.identity, type },
     }));
     const model = type ?? 'an xTool that does not speak the D-series protocol';
     const message = `Unsupported model: ${model}. This console speaks the D-series (D1, D1 Pro, D1 Pro 2.0) protocol only.`;
+    const was = this.ctx.snapshot.getState();
     this.ctx.snapshot.setState({
       link: 'protocol-error',
       problem: { kind: 'protocol', message },
-      retryAt: null,
+      retryAt: this.ctx.now() + this.recheckMs,
       activity: 'unknown',
       activityLabel: 'Unsupported model',
       identity: type,
       updatedAt: this.ctx.now(),
     });
-    this.ctx.log.error('protocol', `${message} The device answered: ${lines.join(' | ')}`);
-    this.stop();
+    if (was.link !== 'protocol-error' || was.problem?.message !== message)
+      this.ctx.log.error('protocol', `${message} The device answered: ${lines.join(' | ')}`);
   }
 
   private pollFailed(e: unknown): number {
     // A powered-off laser is offline, not an error: with no socket either, the first failure says so.
     const socketUp = this.socket.current()?.open ?? false;
-    const delay = this.tracker.fail(e, { offlineAfter: socketUp ? 3 : 1 });
+    this.tracker.fail(asLinkFault(e), { offlineAfter: socketUp ? 3 : 1 });
     if (this.tracker.state === 'offline') {
       // Identify again when it comes back: it may have been power-cycled or swapped.
       this.connected = false;
       this.detail.setState({ machine: INITIAL_STATE, source: null });
     }
-    return delay;
+    // Quick retries while the outage is young: back within 5 s of the fault ending.
+    return quickRetry(this.ctx, this.tracker, this.startedAt);
+  }
+
+  /** The poll did not answer within its window: the link is in doubt now, not at the timeout. */
+  private silent(quietMs: number): void {
+    if (this.tracker.state !== 'online') return;
+    this.tracker.fail(
+      new LinkError('timeout', `The laser has not answered for ${Math.round(quietMs / 1000)} s`),
+      { offlineAfter: 3 },
+    );
+    // The poll in flight is still waiting for its answer: no "next try" time to show.
+    this.tracker.patch({ retryAt: null });
   }
 
   // --- the WebSocket ------------------------------------------------------------------------

@@ -9,6 +9,7 @@ import {
   readWorkingSta,
   readXtoolFrame,
   xtoolShareRead,
+  STATUS_WINDOW_MS,
   xtoolSharing,
   xtoolStatusStream,
   xtoolWatch,
@@ -102,9 +103,13 @@ describe('xTool sharing: reads', () => {
     // The settings: one read a minute for every tab (a settings command drops the kept answer).
     for (const raw of ['/peripherystatus', '/system?action=offset', '/system?action=dotMode'])
       expect(share(raw), raw).toBe(60_000);
-    expect(share('/progress')).toBe(POLL_BUSY_MS);
-    expect(share('/system?action=get_working_sta')).toBe(POLL_BUSY_MS);
+    expect(share('/progress')).toBe(STATUS_WINDOW_MS);
+    expect(share('/system?action=get_working_sta')).toBe(STATUS_WINDOW_MS);
     expect(POLL_BUSY_MS).toBeLessThanOrEqual(POLL_IDLE_MS);
+    // Shorter than the period (which runs from the end of one poll to the start of the next): a
+    // page never gets its own last answer back as new, which would hide a fault for a period.
+    expect(STATUS_WINDOW_MS).toBeLessThan(POLL_BUSY_MS);
+    expect(STATUS_WINDOW_MS).toBeGreaterThan(0);
   });
 
   it('shares only the exact form the console sends', () => {
@@ -157,7 +162,7 @@ describe('xTool sharing: the watch', () => {
     expect(xtoolWatch.everyMs).toBeGreaterThanOrEqual(POLL_IDLE_MS);
     const p = target(xtoolWatch.poll?.path ?? '');
     expect(xtoolAccess({ method: 'GET', ...p })).toMatchObject({ role: 'viewer', command: false });
-    expect(xtoolShareRead(p.path, p.query)).toBe(POLL_BUSY_MS);
+    expect(xtoolShareRead(p.path, p.query)).toBe(STATUS_WINDOW_MS);
   });
 
   it('reads the working state fixture and its other values', () => {

@@ -19,13 +19,17 @@ import { parseFrameText, parseXtoolError, workingStaSchema } from './wire';
 
 /** The console polls this often while a job or frame is loaded or running (session.ts POLL_BUSY_MS). */
 export const BUSY_POLL_MS = 3000;
-/** The watch polls as the console does when the laser is idle (session.ts POLL_IDLE_MS). */
+/** How long a status answer is shared: a second less than the page's poll period. */
+export const STATUS_WINDOW_MS = BUSY_POLL_MS - 1000;
+/** The watch (the gateway itself, no page needed) polls every 10 s: the ESP32 is not loaded more. */
 export const WATCH_EVERY_MS = 10_000;
 
 /**
  * Shared reads (every viewer's tab asks the same of one ESP32):
  * - The status poll: `GET /system?action=get_working_sta`, then `GET /progress`, every 3 s. The
- *   window is the poll period: an answer is never older than a poll would see.
+ *   window (STATUS_WINDOW_MS) is shorter than the period, which runs from the end of a page's poll
+ *   to the start of its next: a page never gets its own last answer back as new (that would hide a
+ *   fault for a whole period: the poll is the laser's liveness), and an answer is at most 2 s old.
  * - The settings (`/peripherystatus`, `/system?action=offset`, `/system?action=dotMode`), read
  *   once a minute by every tab (queries.ts SETTINGS_REFRESH_MS): one read a minute for all. A
  *   settings command must be seen at once: the gateway drops every kept answer of a machine when
@@ -40,13 +44,13 @@ export const WATCH_EVERY_MS = 10_000;
 const SETTINGS_REFRESH_MS = 60_000;
 
 const SHARED_SYSTEM_ACTIONS: Readonly<Record<string, number>> = {
-  get_working_sta: BUSY_POLL_MS,
+  get_working_sta: STATUS_WINDOW_MS,
   offset: SETTINGS_REFRESH_MS,
   dotMode: SETTINGS_REFRESH_MS,
   version: SETTINGS_REFRESH_MS,
 };
 const SHARED_PATHS: Readonly<Record<string, number>> = {
-  '/progress': BUSY_POLL_MS,
+  '/progress': STATUS_WINDOW_MS,
   '/peripherystatus': SETTINGS_REFRESH_MS,
   '/getmachinetype': SETTINGS_REFRESH_MS,
 };

@@ -59,7 +59,9 @@ export function defineCommands<
 
 /**
  * Why `command` cannot be sent now (null: it can), kept current: subscribed to the runner's
- * state, the machine snapshot and every store the command's availability reads.
+ * state, the machine snapshot and every store the command's availability reads — and to time,
+ * since data goes stale without any store changing (the link is then in doubt: commands other
+ * than stops are disabled until fresh data arrives).
  */
 export function useBlockedReason<A>(
   runner: CommandRunner,
@@ -69,9 +71,29 @@ export function useBlockedReason<A>(
   const needs = command.needs;
   const subscribe = useCallback(
     (listener: () => void) => {
+      let timer: ReturnType<typeof setTimeout> | null = null;
+      const arm = (): void => {
+        if (timer) clearTimeout(timer);
+        timer = null;
+        const ms = runner.msUntilInDoubt();
+        if (ms !== null)
+          timer = setTimeout(() => {
+            timer = null;
+            listener();
+            arm();
+          }, ms + 1);
+      };
+      const changed = (): void => {
+        listener();
+        arm();
+      };
       const stores: Subscribable[] = [runner.state, snapshot, ...(needs ?? [])];
-      const unsubs = [...new Set(stores)].map((s) => s.subscribe(listener));
-      return () => unsubs.forEach((u) => u());
+      const unsubs = [...new Set(stores)].map((s) => s.subscribe(changed));
+      arm();
+      return () => {
+        unsubs.forEach((u) => u());
+        if (timer) clearTimeout(timer);
+      };
     },
     [runner, snapshot, needs],
   );

@@ -18,7 +18,9 @@ import { Lifecycle, type RunToken } from './lifecycle';
  *   once more right after any poll in flight;
  * - streams reconnect with backoff, under a declared heartbeat policy, with optional fallback
  *   polling; they are closed on stop;
- * - on-demand reads go through `ctx.queries` and are cancelled and dropped on stop.
+ * - on-demand reads go through `ctx.queries` and are cancelled and dropped on stop;
+ * - a command that was not confirmed (commands.ts: deadline passed, answer lost) makes every poll
+ *   run again at once, so the operator sees what the machine actually does before deciding again.
  */
 export interface PollSpec<T> {
   /** For the log: "status", "jobs". */
@@ -61,6 +63,7 @@ export abstract class KernelSession implements MachineSession {
 
   start(): void {
     if (!this.life.start()) return;
+    this.life.onStop(this.ctx.commands.onUnconfirmed(() => this.pollNow()));
     this.onStart();
     for (const p of this.pollers) p.poller.start(p.firstDelayMs);
     for (const s of this.streams) s.link = s.make();
@@ -76,6 +79,15 @@ export abstract class KernelSession implements MachineSession {
     this.onStop();
     this.life.stop();
     this.ctx.queries.clear();
+  }
+
+  /**
+   * Read the machine again now: every poll runs at once (or right after the one in flight). Called
+   * after a command that was not confirmed; a family may call it too.
+   */
+  pollNow(): void {
+    if (!this.life.running) return;
+    for (const p of this.pollers) p.poller.kick();
   }
 
   /** Family start work beyond polls and streams (an identity read). Runs before them. */

@@ -50,7 +50,8 @@ export function Overview({ session }: TabProps<XtoolSession>) {
     return (
       <Notice tone="bad" title="Unsupported model" testId="xtool-unsupported">
         This device is not an xTool D-series (D1, D1 Pro, D1 Pro 2.0) laser, and other xTool families speak
-        another protocol. Nothing is sent to it. It answered: {d.model.answered.join(' · ')}
+        another protocol. Nothing is sent to it but a check, now and then, of what it is. It answered:{' '}
+        {d.model.answered.join(' · ')}
       </Notice>
     );
   }

@@ -1,0 +1,150 @@
+import type { LinkTracker, SessionContext } from './contract';
+import { LinkError } from './errors';
+import type { Lifecycle } from './kernel';
+import { backoffDelay, type BackoffOptions } from './link';
+
+/**
+ * Link faults against verdicts (issue 15), shared by every family. A request that failed — no
+ * answer, a timeout, the console server's own failure (it could not reach the controller), a 5xx,
+ * a cut answer — says nothing about the controller: it is a link problem, retried quickly, never
+ * "unsupported model", "needs login" or "incompatible version". Only a complete answer of the
+ * controller itself can give a verdict, and a verdict is re-checked on every reconnect.
+ */
+
+/** Retries while an outage is young are at most this far apart: back within 5 s of the fault ending. */
+export const QUICK_RETRY_MAX_MS = 2500;
+/** An outage older than this is retried on the DESIGN's backoff (up to 30 s). */
+export const QUICK_RETRY_FOR_MS = 5 * 60_000;
+export const SLOW_RETRY_MAX_MS = 30_000;
+
+/**
+ * The console server's own failure body, `{"error": …, "gateway": true}`, with or without its
+ * `X-Shopdeck-Gateway` header (HttpClient reads the header; this reads the body): never the controller's.
+ */
+export function gatewayBodyError(status: number, body: unknown): LinkError | null {
+  if (status < 400 || typeof body !== 'object' || body === null) return null;
+  const b = body as { error?: unknown; gateway?: unknown };
+  if (b.gateway !== true) return null;
+  const words = typeof b.error === 'string' ? b.error : `the console server answered HTTP ${status}`;
+  return new LinkError(status >= 500 ? 'network' : 'http', words.slice(0, 300), {
+    status,
+    fromGateway: true,
+  });
+}
+
+/** The console server answered for the controller (it could not reach it, or refused the request). */
+export function fromGateway(e: unknown): boolean {
+  return e instanceof LinkError && e.fromGateway;
+}
+
+/** A cut (truncated) or unreadable answer: the body broke off, or what came is not JSON. */
+export function isCutAnswer(e: unknown): boolean {
+  if (!(e instanceof LinkError)) return e instanceof TypeError;
+  return e.kind === 'protocol' && /not JSON/i.test(e.message);
+}
+
+/** Nothing (or nothing whole) came from the controller itself: a link problem, never a verdict. */
+export function isLinkFault(e: unknown): boolean {
+  if (!(e instanceof LinkError)) return true;
+  if (fromGateway(e)) return true;
+  switch (e.kind) {
+    case 'network':
+    case 'timeout':
+    case 'offline':
+      return true;
+    case 'http':
+    case 'vendor':
+      return e.status !== null && e.status >= 500;
+    case 'protocol':
+      return isCutAnswer(e);
+    case 'aborted':
+      return false;
+  }
+}
+
+/** The error as the link shows it: a cut answer is a failed request, not a protocol error. */
+export function asLinkFault(e: unknown): unknown {
+  if (e instanceof LinkError && !isCutAnswer(e)) return e;
+  if (e instanceof LinkError) return new LinkError('network', `The answer was cut off (${e.message})`);
+  return new LinkError('network', `The answer was cut off (${e instanceof Error ? e.message : String(e)})`);
+}
+
+/**
+ * After `tracker.fail`: the delay before the next try, quick (≤ 2.5 s) while the outage is young so
+ * the machine is back within 5 s of the fault ending, the DESIGN's backoff after that. Written as
+ * the snapshot's `retryAt`.
+ */
+export function quickRetry(ctx: SessionContext, tracker: LinkTracker, startedAt: number): number {
+  const s = ctx.snapshot.getState();
+  const now = ctx.now();
+  const downFor = now - Math.max(s.updatedAt ?? 0, startedAt);
+  const maxMs = downFor < QUICK_RETRY_FOR_MS ? QUICK_RETRY_MAX_MS : SLOW_RETRY_MAX_MS;
+  const delay = backoffDelay(Math.max(0, tracker.failures - 1), { maxMs });
+  if (s.link !== 'needs-login') tracker.patch({ retryAt: now + delay });
+  return delay;
+}
+
+/**
+ * A liveness rule: no good answer for `windowMs` is silence, reported once (`onSilent`) until the
+ * next good answer. Checked on the run's timers, so it ends with the run.
+ */
+export class Liveness {
+  private lastHeard = 0;
+  private reported = false;
+
+  constructor(
+    private readonly o: {
+      life: Lifecycle;
+      now: () => number;
+      windowMs: () => number;
+      onSilent: (quietMs: number) => void;
+      checkEveryMs?: number;
+    },
+  ) {}
+
+  /** On start: the clock starts now. */
+  start(): void {
+    this.heard();
+    this.o.life.setInterval(() => this.check(), this.o.checkEveryMs ?? 250);
+  }
+
+  /** A good answer came. */
+  heard(): void {
+    this.lastHeard = this.o.now();
+    this.reported = false;
+  }
+
+  private check(): void {
+    const quiet = this.o.now() - this.lastHeard;
+    if (this.reported || quiet < this.o.windowMs()) return;
+    this.reported = true;
+    this.o.onSilent(quiet);
+  }
+}
+
+/**
+ * Credentials that are the gateway's (an API key, the machine's configured password) and were
+ * refused are tried again on their own, slowly: a few quick tries, then at most once a minute, so
+ * a wrong key neither hammers the controller nor locks an account. A login typed by a user is
+ * never retried on their behalf. `attempt` counts from 0.
+ */
+export const AUTH_RETRY_BASE_MS = 2000;
+export const AUTH_RETRY_MAX_MS = 60_000;
+
+/**
+ * The socket's reconnect backoff: quick (≤ 2.5 s) while the outage is young, the DESIGN's after
+ * that. A getter, read by the socket at each reconnect.
+ */
+export function quickBackoff(ctx: SessionContext, startedAt: () => number): BackoffOptions {
+  return {
+    get maxMs(): number {
+      const s = ctx.snapshot.getState();
+      const downFor = ctx.now() - Math.max(s.updatedAt ?? 0, startedAt());
+      return downFor < QUICK_RETRY_FOR_MS ? QUICK_RETRY_MAX_MS : SLOW_RETRY_MAX_MS;
+    },
+  };
+}
+
+export function authRetryDelay(attempt: number): number {
+  return backoffDelay(attempt, { baseMs: AUTH_RETRY_BASE_MS, maxMs: AUTH_RETRY_MAX_MS, jitter: 0.2 });
+}
