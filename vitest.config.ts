@@ -7,6 +7,7 @@ export default defineConfig({
       'gateway/**/*.test.ts',
       'server/**/*.test.ts',
       'tests/unit/**/*.test.{ts,tsx}',
+      'tests/faults/**/*.test.ts',
     ],
     environment: 'node',
     setupFiles: ['tests/setup.ts'],
