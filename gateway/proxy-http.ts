@@ -615,6 +615,7 @@ export function createHttpProxy(ctx: GatewayContext) {
       finished = true;
       pending.delete(upstream);
       unwatch();
+      res.off('close', onBrowserGone);
       done(r);
     };
     // An idle timeout (it covers the answer's body too), except for a command with a deadline:
@@ -627,6 +628,8 @@ export function createHttpProxy(ctx: GatewayContext) {
     /** A command that may have reached the controller: its failure is "not confirmed". */
     const unconfirmed = (): boolean => watch !== null && watch.sent;
     upstream.on('error', (e: Error & { code?: string }) => {
+      // Answered already (whole, refused, or sent again with a new key): nothing more to say.
+      if (finished) return;
       // Stopped by its watch (deadline, browser gone): answered and audited there.
       if (watch?.stopped) {
         finish({ error: 'aborted' });
@@ -638,11 +641,12 @@ export function createHttpProxy(ctx: GatewayContext) {
       if (!res.headersSent) gatewayError(res, timedOut ? 504 : 502, words, unconfirmed());
       else res.destroy();
     });
-    res.on('close', () => {
+    const onBrowserGone = (): void => {
       if (res.writableFinished) return;
       abandoned = true;
       upstream.destroy();
-    });
+    };
+    res.on('close', onBrowserGone);
     upstream.on('response', (up) => {
       reachability.up(m.id);
       const status = up.statusCode ?? 502;
@@ -663,7 +667,14 @@ export function createHttpProxy(ctx: GatewayContext) {
           agent,
           watch,
         );
-      if (held?.retry(status, again, { request: upstream, response: up })) return;
+      if (held?.retry(status, again, { request: upstream, response: up })) {
+        // Sent again with a new key (a forward of its own): this one lets go of the response.
+        finished = true;
+        pending.delete(upstream);
+        unwatch();
+        res.off('close', onBrowserGone);
+        return;
+      }
       const given = forwardResponseHeaders(up.headers);
       for (const [k, v] of Object.entries(given)) {
         given[k] = Array.isArray(v) ? v.map((x) => redact(x, forms)) : redact(v, forms);

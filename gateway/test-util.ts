@@ -19,6 +19,7 @@ export function selfSignedCert(
   dir: string,
   cn: string,
   name = cn,
+  days = 1,
 ): { keyFile: string; certFile: string; key: string; cert: string } {
   const keyFile = path.join(dir, `${name}.key`);
   const certFile = path.join(dir, `${name}.pem`);
@@ -35,7 +36,7 @@ export function selfSignedCert(
       '-out',
       certFile,
       '-days',
-      '2',
+      String(days),
       '-subj',
       `/CN=${cn}`,
     ],

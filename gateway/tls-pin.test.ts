@@ -9,7 +9,7 @@ import tls from 'node:tls';
 import { afterEach, beforeAll, describe, expect, it } from 'vitest';
 import { WebSocket } from 'ws';
 import type { MachineEntry } from './machines';
-import { startStub, tempDir, type Stub } from './test-util';
+import { selfSignedCert, startStub, tempDir, type Stub } from './test-util';
 import {
   CertificateChanged,
   connectPinned,
@@ -42,37 +42,13 @@ interface Cert {
   openssl: string;
 }
 
-/** A self-signed certificate made with openssl, as gateway/proxy.test.ts does. */
+/** A self-signed certificate made with openssl, with the fingerprint openssl prints for it. */
 function makeCert(d: string, name: string, cn: string): Cert {
-  const key = path.join(d, `${name}-key.pem`);
-  const cert = path.join(d, `${name}-cert.pem`);
-  execFileSync(
-    'openssl',
-    [
-      'req',
-      '-x509',
-      '-newkey',
-      'rsa:2048',
-      '-nodes',
-      '-keyout',
-      key,
-      '-out',
-      cert,
-      '-days',
-      '1',
-      '-subj',
-      `/CN=${cn}`,
-    ],
-    { stdio: 'ignore' },
-  );
-  const fp = execFileSync('openssl', ['x509', '-in', cert, '-noout', '-fingerprint', '-sha256'], {
+  const made = selfSignedCert(d, cn, name);
+  const fp = execFileSync('openssl', ['x509', '-in', made.certFile, '-noout', '-fingerprint', '-sha256'], {
     encoding: 'utf8',
   });
-  return {
-    key: readFileSync(key, 'utf8'),
-    cert: readFileSync(cert, 'utf8'),
-    openssl: fp.trim().split('=')[1] ?? '',
-  };
+  return { key: made.key, cert: made.cert, openssl: fp.trim().split('=')[1] ?? '' };
 }
 
 // The real controller and an impostor with its own self-signed certificate for the same name.
