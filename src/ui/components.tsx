@@ -183,7 +183,7 @@ export function ProgressBar(props: { value: number | null; label?: string }) {
       aria-valuemax={100}
       aria-valuenow={pct === null ? undefined : Math.round(pct)}
     >
-      <span style={{ width: `${pct ?? 30}%` }} />
+      <span style={pct === null ? undefined : { transform: `scaleX(${pct / 100})` }} />
     </div>
   );
 }
