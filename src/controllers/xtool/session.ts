@@ -38,7 +38,7 @@ export const POLL_IDLE_MS = 3000;
  * timeout (client.ts READ_TIMEOUT_MS). While the page is hidden the poll runs every 10 s or more,
  * and the window grows with it.
  */
-export const LIVENESS_MS = 4500;
+export const LIVENESS_MS = 4000;
 /**
  * A slow link that still delivers is not silence: the window is at least the poll period and this
  * many times the slowest of the last answers (SLOW_ANSWERS of them), so answers that take 4 s (2 s
@@ -175,6 +175,8 @@ export class XtoolSession extends KernelSession {
         return ctx.visibility.hidden() ? HIDDEN_POLL_MS + window : window;
       },
       onSilent: (quiet) => this.silent(quiet),
+      // Checked often: silence shows within the window and a tenth of a second.
+      checkEveryMs: 100,
     });
     this.socket = this.stream(() => ({
       url: () => `${machineBase(this.machine.id)}/`,
