@@ -1,16 +1,18 @@
-import { useEffect, useState } from 'react';
+import { Suspense, useEffect, useState } from 'react';
 import { useStore } from 'zustand';
 import { controllers } from '../controllers';
+import { lazyView } from '../fleet/lazy';
 import { authStore } from '../fleet/auth';
-import { EmptyState } from '../ui';
+import { EmptyState, Loading } from '../ui';
 import { AlarmBanner, useBlockingAlarms } from './AlarmBanner';
-import { AuditPage } from './audit/AuditPage';
 import { LoginPage } from './auth/LoginPage';
 import { AuthMenu } from './auth/UserControls';
 import { ErrorBoundary } from './ErrorBoundary';
 import { FleetPage } from './FleetPage';
 import { MachinePage } from './MachinePage';
 import { Link, matchRoute, useLocation } from './router';
+
+const AuditPage = lazyView(() => import('./audit/AuditPage'), 'AuditPage');
 
 type ThemeChoice = 'system' | 'light' | 'dark';
 
@@ -118,7 +120,10 @@ export function App() {
           </main>
         ) : (
           <main className="main">
-            <ErrorBoundary label="Page">{body}</ErrorBoundary>
+            <ErrorBoundary label="Page">
+              {/* Pages other than the fleet and a machine are chunks of their own (issue 16). */}
+              <Suspense fallback={<Loading />}>{body}</Suspense>
+            </ErrorBoundary>
           </main>
         )}
       </div>

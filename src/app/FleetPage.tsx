@@ -1,13 +1,15 @@
 import { useStore } from 'zustand';
 import { controllers } from '../controllers';
 import { getRuntime, fleetStore, type MachineRuntime } from '../fleet/fleet';
+import { preloadViews } from '../fleet/lazy';
 import { linkWords } from '../fleet/contract';
-import { useNow, useSnapshot } from '../fleet/react';
+import { useSnapshot } from '../fleet/react';
 import { mostSevereAlarm, type Activity, type MachineInfo } from '../fleet/types';
-import { Badge, EmptyState, Notice, ProgressBar, formatAge, formatDuration, formatPercent } from '../ui';
+import { Badge, EmptyState, Notice, ProgressBar, formatDuration, formatPercent } from '../ui';
+import { Age } from './Age';
 import { ErrorBoundary } from './ErrorBoundary';
 import { Link } from './router';
-import { ACTIVITY_TONE, ACTIVITY_WORDS, LINK_TONE, STALE_MS } from './status';
+import { ACTIVITY_TONE, ACTIVITY_WORDS, LINK_TONE } from './status';
 import { useEffect, useId, useState } from 'react';
 
 export function FleetPage() {
@@ -87,20 +89,6 @@ function SummaryBar({ machines }: { machines: MachineInfo[] }) {
   );
 }
 
-function Age({ at }: { at: number | null }) {
-  const now = useNow(1000);
-  const stale = at === null || now - at > STALE_MS;
-  return (
-    <span className={stale ? 'age stale' : 'age'} data-testid="data-age" data-stale={stale}>
-      {at === null
-        ? 'no data yet'
-        : stale
-          ? `stale · ${formatAge(at, now)}`
-          : `updated ${formatAge(at, now)}`}
-    </span>
-  );
-}
-
 export function MachineTile({ info }: { info: MachineInfo }) {
   const rt = getRuntime(info.id);
   if (!rt) return null;
@@ -121,6 +109,7 @@ function TileBody({ info, rt }: { info: MachineInfo; rt: MachineRuntime }) {
   const alarm = mostSevereAlarm(s.alarms.filter((a) => !a.acknowledged));
   const Extra = mod?.TileExtra;
   const nameId = useId();
+  const preloadFirstTab = () => preloadViews(mod?.tabs.slice(0, 1).map((t) => t.Component) ?? []);
   // One link per tile, the machine's name; it covers the tile for the pointer (CSS), and any
   // control on the tile sits above it. No clickable <article>.
   return (
@@ -133,7 +122,14 @@ function TileBody({ info, rt }: { info: MachineInfo; rt: MachineRuntime }) {
       <header>
         <div>
           <h3 id={nameId}>
-            <Link to={`/m/${encodeURIComponent(info.id)}`} className="tile-name">
+            <Link
+              to={`/m/${encodeURIComponent(info.id)}`}
+              className="tile-name"
+              // The machine page's first tab is its own chunk: fetched as the finger or pointer comes.
+              onPointerEnter={preloadFirstTab}
+              onFocus={preloadFirstTab}
+              onTouchStart={preloadFirstTab}
+            >
               {info.name}
             </Link>
           </h3>

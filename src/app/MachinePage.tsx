@@ -1,15 +1,18 @@
-import { type ComponentType } from 'react';
+import { Suspense, useEffect, type ComponentType } from 'react';
 import { useStore } from 'zustand';
 import { controllers } from '../controllers';
 import { linkWords, type TabProps, type MachineSession } from '../fleet/contract';
 import { fleetStore, getRuntime, type MachineRuntime } from '../fleet/fleet';
-import { LogView, useNow, useRole, useSnapshot } from '../fleet/react';
+import { lazyView, preloadViews, whenIdle } from '../fleet/lazy';
+import { LogView, useRole, useSnapshot } from '../fleet/react';
 import { roleAtLeast } from '../fleet/types';
-import { Badge, EmptyState, Notice, Panel, formatAge, formatDateTime } from '../ui';
+import { Badge, EmptyState, Loading, Notice, Panel } from '../ui';
+import { Age, RetryIn } from './Age';
 import { ErrorBoundary } from './ErrorBoundary';
 import { Link } from './router';
-import { SimulatorPanel } from './SimulatorPanel';
-import { ACTIVITY_TONE, ACTIVITY_WORDS, LINK_TONE, STALE_MS } from './status';
+import { ACTIVITY_TONE, ACTIVITY_WORDS, LINK_TONE } from './status';
+
+const SimulatorPanel = lazyView(() => import('./SimulatorPanel'), 'SimulatorPanel');
 
 interface PageTab {
   id: string;
@@ -48,7 +51,6 @@ function MachinePageBody({ rt, tab }: { rt: MachineRuntime; tab: string | null }
     identity: x.identity,
     retryAt: x.retryAt,
   }));
-  const now = useNow(1000);
   const session = rt.session;
   const tabs: PageTab[] = [];
   if (mod && session) {
@@ -63,8 +65,9 @@ function MachinePageBody({ rt, tab }: { rt: MachineRuntime; tab: string | null }
   if (info.simulated && roleAtLeast(role, 'supervisor'))
     tabs.push({ id: 'simulator', label: 'Simulator', render: () => <SimulatorPanel id={info.id} /> });
   const current = tabs.find((t) => t.id === tab) ?? tabs[0];
+  // The other tabs' code, when the browser has nothing else to do: a tab switch is instant.
+  useEffect(() => whenIdle(() => preloadViews(mod?.tabs.map((t) => t.Component) ?? [])), [mod]);
   const LoginForm = mod?.LoginForm as ComponentType<TabProps<MachineSession>> | undefined;
-  const stale = s.updatedAt === null || now - s.updatedAt > STALE_MS;
 
   return (
     <div className="machine-page" data-testid={`machine-${info.id}`}>
@@ -87,11 +90,7 @@ function MachinePageBody({ rt, tab }: { rt: MachineRuntime; tab: string | null }
             <Badge tone={LINK_TONE[s.link]} testId="machine-link">
               {linkWords(s.link)}
             </Badge>
-            <span className={stale ? 'age stale' : 'age'} title={formatDateTime(s.updatedAt)}>
-              {s.updatedAt === null
-                ? 'no data yet'
-                : `${stale ? 'stale · ' : ''}updated ${formatAge(s.updatedAt, now)}`}
-            </span>
+            <Age at={s.updatedAt} testId="machine-data-age" />
           </div>
         </div>
       </div>
@@ -108,7 +107,7 @@ function MachinePageBody({ rt, tab }: { rt: MachineRuntime; tab: string | null }
           testId="link-problem"
         >
           {s.problem.message}
-          {s.retryAt && s.retryAt > now ? ` — next try in ${Math.ceil((s.retryAt - now) / 1000)} s.` : ''}
+          <RetryIn at={s.retryAt} />
         </Notice>
       )}
       {s.link === 'needs-login' && LoginForm && session && (
@@ -139,7 +138,8 @@ function MachinePageBody({ rt, tab }: { rt: MachineRuntime; tab: string | null }
       <div className="tab-body">
         {current && (
           <ErrorBoundary key={current.id} label={`${info.name} · ${current.label}`}>
-            {current.render()}
+            {/* A family's tab is its own chunk, loaded when first shown (issue 16). */}
+            <Suspense fallback={<Loading />}>{current.render()}</Suspense>
           </ErrorBoundary>
         )}
       </div>

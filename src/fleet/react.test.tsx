@@ -5,7 +5,7 @@ import { DEADLINE_GRACE_MS, type CommandDecl } from './commands';
 import { LinkError } from './errors';
 import { createContext } from './fleet';
 import { alwaysVisible } from './link';
-import { CommandButton } from './react';
+import { CommandButton, useNow } from './react';
 
 afterEach(cleanup);
 
@@ -103,6 +103,39 @@ describe('CommandButton', () => {
       expect(failed.textContent).toBe('Busy: cannot pause now');
       expect(failed.getAttribute('data-not-confirmed')).toBeNull();
       expect(screen.getByTestId('cmd-test.pause').getAttribute('title')).toMatch(/^Last attempt failed/);
+    } finally {
+      vi.useRealTimers();
+    }
+  });
+});
+
+describe('useNow', () => {
+  it('twenty readers share one timer of their period, which stops with the last reader', () => {
+    vi.useFakeTimers();
+    try {
+      const renders: number[] = [];
+      function Clock({ i }: { i: number }) {
+        const now = useNow(1000);
+        renders[i] = (renders[i] ?? 0) + 1;
+        return <span data-testid={`clock-${i}`}>{now}</span>;
+      }
+      const view = render(
+        <>
+          {Array.from({ length: 20 }, (_, i) => (
+            <Clock key={i} i={i} />
+          ))}
+        </>,
+      );
+      expect(vi.getTimerCount()).toBe(1);
+      const before = Number(screen.getByTestId('clock-7').textContent);
+      act(() => {
+        vi.advanceTimersByTime(3000);
+      });
+      expect(Number(screen.getByTestId('clock-7').textContent)).toBe(before + 3000);
+      // Each reader rendered once per tick (plus its first render), not more.
+      expect(renders.every((n) => n <= 4)).toBe(true);
+      view.unmount();
+      expect(vi.getTimerCount()).toBe(0);
     } finally {
       vi.useRealTimers();
     }

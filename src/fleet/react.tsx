@@ -1,4 +1,4 @@
-import { useCallback, useEffect, useMemo, useState, type ReactNode } from 'react';
+import { useCallback, useMemo, useState, useSyncExternalStore, type ReactNode } from 'react';
 import { useStore, type StoreApi } from 'zustand';
 import { useShallow } from 'zustand/react/shallow';
 import { Button, Dialog, ScrollRegion, downloadText, formatTime } from '../ui';
@@ -25,14 +25,49 @@ export function useSnapshot<U>(
   return useStore(ctx.snapshot, useShallow(selector));
 }
 
-/** The current time, refreshed every `everyMs` (for data ages and countdowns). */
+/**
+ * One shared clock per period (issue 16): every component that shows a time (data ages,
+ * countdowns) reads the same ticker instead of a timer each; only those components re-render on
+ * a tick. The ticker stops when nobody reads it.
+ */
+const clocks = new Map<
+  number,
+  { now: number; listeners: Set<() => void>; timer: ReturnType<typeof setInterval> | null }
+>();
+
+function clockOf(everyMs: number) {
+  let c = clocks.get(everyMs);
+  if (!c) {
+    c = { now: Date.now(), listeners: new Set(), timer: null };
+    clocks.set(everyMs, c);
+  }
+  return c;
+}
+
+function subscribeClock(everyMs: number, listener: () => void): () => void {
+  const c = clockOf(everyMs);
+  c.listeners.add(listener);
+  if (c.timer === null) {
+    c.now = Date.now();
+    // One timer for every reader of this period: they all update in the same frame.
+    c.timer = setInterval(() => {
+      c.now = Date.now();
+      for (const l of [...c.listeners]) l();
+    }, everyMs);
+  }
+  return () => {
+    c.listeners.delete(listener);
+    if (c.listeners.size === 0 && c.timer !== null) {
+      clearInterval(c.timer);
+      c.timer = null;
+    }
+  };
+}
+
+/** The time now, updated every `everyMs` by the shared clock of that period. */
 export function useNow(everyMs = 1000): number {
-  const [now, setNow] = useState(() => Date.now());
-  useEffect(() => {
-    const t = setInterval(() => setNow(Date.now()), everyMs);
-    return () => clearInterval(t);
-  }, [everyMs]);
-  return now;
+  const subscribe = useCallback((l: () => void) => subscribeClock(everyMs, l), [everyMs]);
+  return useSyncExternalStore(subscribe, () => clockOf(everyMs).now);
 }
 
 /** The role the UI acts as (open mode: supervisor). */

@@ -211,6 +211,15 @@ export function EmptyState(props: { children: ReactNode }) {
   return <div className="ui-empty">{props.children}</div>;
 }
 
+/** While a view's code loads (a chunk of its own): says so, politely, without moving focus. */
+export function Loading() {
+  return (
+    <div className="ui-empty" role="status" aria-live="polite" data-testid="view-loading">
+      Loading…
+    </div>
+  );
+}
+
 export function Button(
   props: ButtonHTMLAttributes<HTMLButtonElement> & {
     variant?: 'primary' | 'secondary' | 'danger';

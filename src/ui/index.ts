@@ -4,6 +4,7 @@ export {
   DataTable,
   Dialog,
   EmptyState,
+  Loading,
   Field,
   KeyValues,
   Notice,

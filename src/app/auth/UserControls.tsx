@@ -1,6 +1,7 @@
 import { useCallback, useEffect, useState, type FormEvent } from 'react';
 import { useStore } from 'zustand';
 import { authStore } from '../../fleet/auth';
+import { useNow } from '../../fleet/react';
 import { Badge, Button, Dialog, Field, Notice } from '../../ui';
 import { elevate, endElevation, fetchSession, logout, sessionExtra } from './api';
 import './auth.css';
@@ -14,15 +15,6 @@ function useSessionExtra(): void {
   useEffect(() => {
     if (mode === 'secured' && !loaded) void fetchSession().catch(() => undefined);
   }, [mode, loaded]);
-}
-
-function useNow(everyMs: number): number {
-  const [now, setNow] = useState(() => Date.now());
-  useEffect(() => {
-    const t = setInterval(() => setNow(Date.now()), everyMs);
-    return () => clearInterval(t);
-  }, [everyMs]);
-  return now;
 }
 
 /** A supervisor PIN: 6 to 12 digits (the gateway does not check shorter ones). */

@@ -1,13 +1,15 @@
 import { defineController } from '../../fleet/contract';
 import { duetDeclaration } from './declaration';
 import { DuetSession } from './session';
-import { Console } from './views/Console';
-import { Files } from './views/Files';
-import { HeightMap } from './views/HeightMap';
 import { LoginForm } from './views/Login';
-import { Overview } from './views/Overview';
-import { Plugins } from './views/Plugins';
 import { TileExtra } from './views/Tile';
+import { lazyView } from '../../fleet/lazy';
+
+const Console = lazyView(() => import('./views/Console'), 'Console');
+const Files = lazyView(() => import('./views/Files'), 'Files');
+const HeightMap = lazyView(() => import('./views/HeightMap'), 'HeightMap');
+const Overview = lazyView(() => import('./views/Overview'), 'Overview');
+const Plugins = lazyView(() => import('./views/Plugins'), 'Plugins');
 
 export const duetModule = defineController<DuetSession>({
   ...duetDeclaration,

@@ -1,13 +1,15 @@
 import { defineController } from '../../fleet/contract';
 import { g2coreDeclaration } from './declaration';
 import { G2coreSession } from './session';
-import { ConsoleTab } from './views/Console';
 import './views/g2core.css';
-import { JobsTab } from './views/Jobs';
-import { JogTab } from './views/Jog';
-import { OverviewTab } from './views/Overview';
-import { SettingsTab } from './views/Settings';
 import { G2coreTile } from './views/Tile';
+import { lazyView } from '../../fleet/lazy';
+
+const ConsoleTab = lazyView(() => import('./views/Console'), 'ConsoleTab');
+const JobsTab = lazyView(() => import('./views/Jobs'), 'JobsTab');
+const JogTab = lazyView(() => import('./views/Jog'), 'JogTab');
+const OverviewTab = lazyView(() => import('./views/Overview'), 'OverviewTab');
+const SettingsTab = lazyView(() => import('./views/Settings'), 'SettingsTab');
 
 /** The g2core controller module: session, tabs. The machine page adds Log and Simulator tabs. */
 export const g2coreModule = defineController<G2coreSession>({

@@ -1,11 +1,13 @@
 import { defineController } from '../../fleet/contract';
 import { pruntDeclaration } from './declaration';
 import { PruntSession } from './session';
-import { ConfigTab } from './views/ConfigTab';
-import { ConsoleTab } from './views/ConsoleTab';
-import { FilesTab } from './views/FilesTab';
-import { OverviewTab } from './views/OverviewTab';
-import { StatusTab } from './views/StatusTab';
+import { lazyView } from '../../fleet/lazy';
+
+const ConfigTab = lazyView(() => import('./views/ConfigTab'), 'ConfigTab');
+const ConsoleTab = lazyView(() => import('./views/ConsoleTab'), 'ConsoleTab');
+const FilesTab = lazyView(() => import('./views/FilesTab'), 'FilesTab');
+const OverviewTab = lazyView(() => import('./views/OverviewTab'), 'OverviewTab');
+const StatusTab = lazyView(() => import('./views/StatusTab'), 'StatusTab');
 
 /** The machine page adds the Log tab (the machine log carries the controller's Log lines). */
 export const pruntModule = defineController<PruntSession>({

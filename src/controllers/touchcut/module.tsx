@@ -1,13 +1,16 @@
 import { defineController } from '../../fleet/contract';
 import { touchcutDeclaration } from './declaration';
 import { TouchcutSession } from './session';
-import { ProgramsView, UnloaderView } from './views/DataViews';
 import { LoginForm } from './views/LoginForm';
-import { MonitorView } from './views/MonitorView';
 import { ScreenThumbnail, ScreenView } from './views/ScreenView';
-import { StatsView } from './views/StatsView';
-import { StatusView } from './views/StatusView';
 import './views/touchcut.css';
+import { lazyView } from '../../fleet/lazy';
+
+const ProgramsView = lazyView(() => import('./views/DataViews'), 'ProgramsView');
+const UnloaderView = lazyView(() => import('./views/DataViews'), 'UnloaderView');
+const MonitorView = lazyView(() => import('./views/MonitorView'), 'MonitorView');
+const StatsView = lazyView(() => import('./views/StatsView'), 'StatsView');
+const StatusView = lazyView(() => import('./views/StatusView'), 'StatusView');
 
 /**
  * Kinetic TouchCut: status, monitor, production statistics, programs, unloader and the live

@@ -1,13 +1,15 @@
 import { defineController } from '../../fleet/contract';
 import { xtoolDeclaration } from './declaration';
 import { XtoolSession } from './session';
-import { Console } from './views/Console';
-import { Discover } from './views/Discover';
-import { Files } from './views/Files';
-import { Firmware } from './views/Firmware';
-import { Overview } from './views/Overview';
-import { Safety } from './views/Safety';
 import { TileExtra } from './views/TileExtra';
+import { lazyView } from '../../fleet/lazy';
+
+const Console = lazyView(() => import('./views/Console'), 'Console');
+const Discover = lazyView(() => import('./views/Discover'), 'Discover');
+const Files = lazyView(() => import('./views/Files'), 'Files');
+const Firmware = lazyView(() => import('./views/Firmware'), 'Firmware');
+const Overview = lazyView(() => import('./views/Overview'), 'Overview');
+const Safety = lazyView(() => import('./views/Safety'), 'Safety');
 
 /** The browser side of the xTool D-series family: session, tabs, fleet tile extra, "Find lasers". */
 export const xtoolModule = defineController<XtoolSession>({

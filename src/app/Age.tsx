@@ -1,0 +1,33 @@
+import { useNow } from '../fleet/react';
+import { formatAge, formatDateTime } from '../ui';
+import { STALE_MS } from './status';
+
+/**
+ * How old a machine's data is ("updated 3 s ago", "stale · 12 s ago"): the one part of a tile or
+ * a machine page that changes every second, so only it re-renders on the shared clock's tick.
+ */
+export function Age({ at, testId = 'data-age' }: { at: number | null; testId?: string }) {
+  const now = useNow(1000);
+  const stale = at === null || now - at > STALE_MS;
+  return (
+    <span
+      className={stale ? 'age stale' : 'age'}
+      data-testid={testId}
+      data-stale={stale}
+      title={at === null ? undefined : formatDateTime(at)}
+    >
+      {at === null
+        ? 'no data yet'
+        : stale
+          ? `stale · ${formatAge(at, now)}`
+          : `updated ${formatAge(at, now)}`}
+    </span>
+  );
+}
+
+/** " — next try in 3 s." while a retry is due (counts down on the shared clock), else nothing. */
+export function RetryIn({ at }: { at: number | null }) {
+  const now = useNow(1000);
+  if (at === null || at <= now) return null;
+  return <> — next try in {Math.ceil((at - now) / 1000)} s.</>;
+}
