@@ -124,11 +124,13 @@ export class Liveness {
 
 /**
  * Credentials that are the gateway's (an API key, the machine's configured password) and were
- * refused are tried again on their own, slowly: a few quick tries, then at most once a minute, so
- * a wrong key neither hammers the controller nor locks an account. A login typed by a user is
- * never retried on their behalf. `attempt` counts from 0.
+ * refused are tried again on their own: every 2.5 s for the first few tries (a key that was
+ * refused for a few seconds, a password changed and changed back, is back within 5 s of being
+ * right again), then backing off to at most once a minute, so a wrong key neither hammers the
+ * controller nor locks an account. A login typed by a user is never retried on their behalf.
  */
-export const AUTH_RETRY_BASE_MS = 2000;
+export const AUTH_QUICK_TRIES = 4;
+export const AUTH_RETRY_BASE_MS = 2500;
 export const AUTH_RETRY_MAX_MS = 60_000;
 
 /**
@@ -145,6 +147,12 @@ export function quickBackoff(ctx: SessionContext, startedAt: () => number): Back
   };
 }
 
+/** The delay before try `attempt` (from 0) of refused credentials that are the gateway's. */
 export function authRetryDelay(attempt: number): number {
-  return backoffDelay(attempt, { baseMs: AUTH_RETRY_BASE_MS, maxMs: AUTH_RETRY_MAX_MS, jitter: 0.2 });
+  if (attempt < AUTH_QUICK_TRIES) return backoffDelay(0, { baseMs: AUTH_RETRY_BASE_MS, jitter: 0.1 });
+  return backoffDelay(attempt - AUTH_QUICK_TRIES + 1, {
+    baseMs: AUTH_RETRY_BASE_MS,
+    maxMs: AUTH_RETRY_MAX_MS,
+    jitter: 0.2,
+  });
 }
