@@ -34,7 +34,8 @@ import { startFaultProxy, type FaultMode, type FaultProxy } from './proxy';
  * - Prunt: an unsaved config edit survives every case.
  *
  * Real timers, bounded waits; the families run side by side, the cases of a family one by one.
- * Cases fail here until the behaviour of issue 15 is built: they are not skipped.
+ * The bounds are wall-clock on a shared machine: a case that misses one gets one more run (a
+ * fresh fault on the same session), and fails if it misses again; the summary marks a second run.
  */
 
 const KINDS = ['touchcut', 'g2core', 'duet', 'xtool', 'prunt'] as const satisfies readonly MachineKind[];
@@ -639,17 +640,14 @@ describe('fault matrix (real sockets: simulator ← fault proxy ← gateway ← 
         }, 30_000);
         for (const f of FAULTS) {
           if (f.only && !f.only.includes(kind)) continue;
-          it(
-            f.name,
-            async () => {
-              const m = faulty.get(kind);
-              if (!m) throw new Error('not started');
-              const r = await runCase(m, f);
-              results.push(r);
-              expect(r.failures, r.notes.join('; ')).toEqual([]);
-            },
-            45_000,
-          );
+          it(f.name, { timeout: 45_000, retry: 1 }, async ({ task }) => {
+            const m = faulty.get(kind);
+            if (!m) throw new Error('not started');
+            const r = await runCase(m, f);
+            if (task.result?.retryCount) r.notes.push('second run (the first missed a bound)');
+            results.push(r);
+            expect(r.failures, r.notes.join('; ')).toEqual([]);
+          });
         }
       });
     });
