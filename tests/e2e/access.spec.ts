@@ -164,7 +164,11 @@ test.describe('access control', () => {
     await expect(page.getByTestId('open-mode-banner')).toHaveCount(0);
     await page.getByLabel('Name').fill(name);
     await page.getByLabel('Password').fill(USERS[name].password);
+    // Signing in reloads the page (a fresh start for this user): wait for that load, or a goto
+    // right after would race it.
+    const reloaded = page.waitForEvent('load');
     await page.getByRole('button', { name: 'Sign in' }).click();
+    await reloaded;
     await expect(page.getByTestId('user-role')).toHaveText(USERS[name].role);
     return page;
   }
