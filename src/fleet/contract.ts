@@ -7,7 +7,7 @@ import { backoffDelay, type Visibility } from './link';
 import type { MachineQueries } from './kernel/query';
 import type { MachineLog } from './log';
 import type { SimulatorFactory } from './sim';
-import type { LinkState, MachineInfo, MachineKind, MachineSnapshot, Role } from './types';
+import type { Activity, LinkState, MachineInfo, MachineKind, MachineSnapshot, Role } from './types';
 
 /**
  * The controller contract: what a family module provides. A family lives in one folder under
@@ -169,6 +169,25 @@ export interface WatchSummary {
   alarm: string | null;
   /** The job's file or program name when one is known. */
   job: string | null;
+}
+
+/** A machine's activity as the watch records it (the same reading for every family). */
+export function watchStateOf(a: Activity): WatchSummary['state'] {
+  switch (a) {
+    case 'running':
+    case 'stopping':
+      return 'running';
+    case 'paused':
+      return 'paused';
+    case 'idle':
+      return 'idle';
+    case 'alarm':
+    case 'error':
+      return 'alarm';
+    case 'offline':
+    case 'unknown':
+      return 'unknown';
+  }
 }
 
 /**

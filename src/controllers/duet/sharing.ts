@@ -1,5 +1,10 @@
-import type { ModelStreamDecl, SharingHints, WatchDecl, WatchSummary } from '../../fleet/contract';
-import type { Activity } from '../../fleet/types';
+import {
+  type ModelStreamDecl,
+  type SharingHints,
+  type WatchDecl,
+  type WatchSummary,
+  watchStateOf,
+} from '../../fleet/contract';
 import { duetAccess } from './access';
 import { baseName } from './client';
 import { routeOf } from './gateway';
@@ -122,24 +127,6 @@ export const duetModelStream: ModelStreamDecl = {
 
 // ---------------------------------------------------------------------------------- watch
 
-function watchState(a: Activity): WatchSummary['state'] {
-  switch (a) {
-    case 'running':
-    case 'stopping':
-      return 'running';
-    case 'paused':
-      return 'paused';
-    case 'idle':
-      return 'idle';
-    case 'alarm':
-    case 'error':
-      return 'alarm';
-    case 'offline':
-    case 'unknown':
-      return 'unknown';
-  }
-}
-
 /** A whole object model (`GET /machine/model`, the socket's first frame) → the summary. */
 export function summaryOfModel(raw: JsonObject): WatchSummary | Error {
   const p = objectModelSchema.safeParse(raw);
@@ -150,7 +137,7 @@ export function summaryOfModel(raw: JsonObject): WatchSummary | Error {
   const m = p.data;
   const alarms = alarmsOf(m, () => 0);
   return {
-    state: watchState(activityOf(m.state.status)),
+    state: watchStateOf(activityOf(m.state.status)),
     alarm: alarms.length ? alarms.map((a) => a.message).join('; ') : null,
     job: jobSummary(m)?.name ?? null,
   };
@@ -173,7 +160,7 @@ function newsOfPatch(patch: JsonObject): Partial<WatchSummary> | null {
   if (status !== undefined) {
     const s = machineStatus.safeParse(status);
     if (s.success) {
-      out.state = watchState(activityOf(s.data));
+      out.state = watchStateOf(activityOf(s.data));
       if (s.data === 'halted') alarms.push('Emergency stop: the machine is halted');
       if (s.data === 'disconnected') alarms.push('DSF has lost the connection to the firmware board');
     }

@@ -1,5 +1,4 @@
-import type { SharingHints, WatchDecl, WatchSummary } from '../../fleet/contract';
-import type { Activity } from '../../fleet/types';
+import { type SharingHints, type WatchDecl, type WatchSummary, watchStateOf } from '../../fleet/contract';
 import { g2coreAccess } from './access';
 import { activityOf, alarmsOf, num } from './model';
 import { errorBody, statusReportResponse } from './wire';
@@ -51,24 +50,6 @@ export function g2coreShareRead(path: string, query: URLSearchParams): number | 
 
 // ---------------------------------------------------------------------------------- watch
 
-function watchState(a: Activity): WatchSummary['state'] {
-  switch (a) {
-    case 'running':
-    case 'stopping':
-      return 'running';
-    case 'paused':
-      return 'paused';
-    case 'idle':
-      return 'idle';
-    case 'alarm':
-    case 'error':
-      return 'alarm';
-    case 'offline':
-    case 'unknown':
-      return 'unknown';
-  }
-}
-
 /**
  * `GET /status_report` (no filter: every key the report is configured with, `stat` among them)
  * → the summary, with the console's own reading (model.ts): `stat` to the state, ALARM, SHUTDOWN,
@@ -95,7 +76,7 @@ export function readStatusReport(status: number, body: string): WatchSummary | E
   const stat = num(p.data['stat']);
   const alarms = alarmsOf(stat, 0, null);
   return {
-    state: watchState(activityOf(stat)),
+    state: watchStateOf(activityOf(stat)),
     alarm: alarms.length ? alarms.map((a) => a.message).join('; ') : null,
     job: null,
   };

@@ -1,11 +1,11 @@
-import type {
-  FanoutStreamDecl,
-  FrameClass,
-  SharingHints,
-  WatchDecl,
-  WatchSummary,
+import {
+  type FanoutStreamDecl,
+  type FrameClass,
+  type SharingHints,
+  type WatchDecl,
+  type WatchSummary,
+  watchStateOf,
 } from '../../fleet/contract';
-import type { Activity } from '../../fleet/types';
 import { FLEET_DIVISOR, TICK_MS } from './state';
 import { activityOf, alarmsOf, derive, normalizeFlat, type StatusModule, type StatusValues } from './status';
 import { wsMessageSchema } from './wire';
@@ -99,24 +99,6 @@ export const pruntStream: FanoutStreamDecl = {
 
 // ---------------------------------------------------------------------------------- watch
 
-function watchState(a: Activity): WatchSummary['state'] {
-  switch (a) {
-    case 'running':
-    case 'stopping':
-      return 'running';
-    case 'paused':
-      return 'paused';
-    case 'idle':
-      return 'idle';
-    case 'alarm':
-    case 'error':
-      return 'alarm';
-    case 'offline':
-    case 'unknown':
-      return 'unknown';
-  }
-}
-
 /** The status model `derive` needs, from the values themselves (the watch has no schema). */
 function modelOf(values: StatusValues): StatusModule[] {
   return Object.entries(values).map(([name, groups]) => ({
@@ -157,7 +139,7 @@ export function readPruntFrame(frame: string): Partial<WatchSummary> | null {
   const { activity } = activityOf(d, m.startup, exception);
   const alarms = alarmsOf(m.startup, exception, () => 0);
   return {
-    state: watchState(activity),
+    state: watchStateOf(activity),
     alarm: alarms.length ? alarms.map((a) => a.message).join('; ') : null,
     job: d.fileName ? d.fileName.replace(/^uploads\//, '') : null,
   };

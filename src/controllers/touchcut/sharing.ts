@@ -1,5 +1,4 @@
-import type { SharingHints, WatchDecl, WatchSummary } from '../../fleet/contract';
-import type { Activity } from '../../fleet/types';
+import { type SharingHints, type WatchDecl, type WatchSummary, watchStateOf } from '../../fleet/contract';
 import { touchcutAccess, touchcutResource } from './access';
 import { activityOf, alarmsOf, hasProgram } from './normalize';
 import { errorBodySchema, statusSchema } from './wire';
@@ -61,24 +60,6 @@ export function touchcutShareRead(path: string, query: URLSearchParams): number 
 
 // ---------------------------------------------------------------------------------- watch
 
-function watchState(a: Activity): WatchSummary['state'] {
-  switch (a) {
-    case 'running':
-    case 'stopping':
-      return 'running';
-    case 'paused':
-      return 'paused';
-    case 'idle':
-      return 'idle';
-    case 'alarm':
-    case 'error':
-      return 'alarm';
-    case 'offline':
-    case 'unknown':
-      return 'unknown';
-  }
-}
-
 /**
  * `GET rest/v1/status` → the summary, with the console's own reading of it (normalize.ts): the
  * state from `machineState` words, an alarm for every `msgStatus` (a critical one makes the state
@@ -110,7 +91,7 @@ export function readTouchcutStatus(status: number, body: string): WatchSummary |
   const critical = alarms.some((a) => a.severity === 'critical');
   const alarm = alarms.filter((a) => a.severity !== 'info');
   return {
-    state: critical ? 'alarm' : watchState(activity),
+    state: critical ? 'alarm' : watchStateOf(activity),
     alarm: alarm.length ? alarm.map((a) => a.message).join('; ') : null,
     job: hasProgram(s.programName) ? s.programName : null,
   };

@@ -1,11 +1,11 @@
-import type {
-  FanoutStreamDecl,
-  FrameClass,
-  SharingHints,
-  WatchDecl,
-  WatchSummary,
+import {
+  type FanoutStreamDecl,
+  type FrameClass,
+  type SharingHints,
+  type WatchDecl,
+  type WatchSummary,
+  watchStateOf,
 } from '../../fleet/contract';
-import type { Activity } from '../../fleet/types';
 import { xtoolAccess } from './access';
 import { alarmForFrame, applyFrame, INITIAL_STATE, toActivity } from './state';
 import { parseFrameText, parseXtoolError, workingStaSchema } from './wire';
@@ -105,24 +105,6 @@ export const xtoolStatusStream: FanoutStreamDecl = {
 
 // ---------------------------------------------------------------------------------- watch
 
-function watchState(a: Activity): WatchSummary['state'] {
-  switch (a) {
-    case 'running':
-    case 'stopping':
-      return 'running';
-    case 'paused':
-      return 'paused';
-    case 'idle':
-      return 'idle';
-    case 'alarm':
-    case 'error':
-      return 'alarm';
-    case 'offline':
-    case 'unknown':
-      return 'unknown';
-  }
-}
-
 /**
  * `GET /system?action=get_working_sta` → the summary: "0" idle; "1" (started by the API) and "2"
  * (started with the button, or loaded and waiting for it: the two look the same) running, as the
@@ -154,7 +136,7 @@ export function readWorkingSta(status: number, body: string): WatchSummary | Err
 export function readXtoolFrame(frame: string): Partial<WatchSummary> | null {
   const f = parseFrameText(frame);
   if (f.kind === 'unknown') return null;
-  const state = watchState(toActivity(applyFrame(INITIAL_STATE, f).state));
+  const state = watchStateOf(toActivity(applyFrame(INITIAL_STATE, f).state));
   const alarm = alarmForFrame(f, 0);
   return alarm ? { state, alarm: alarm.message } : { state };
 }
