@@ -1,18 +1,13 @@
 import { Suspense, useEffect, useState } from 'react';
 import { useStore } from 'zustand';
-import { controllers } from '../controllers';
-import { lazyView } from '../fleet/lazy';
+import { familyPages } from '../controllers';
 import { authStore } from '../fleet/auth';
 import { EmptyState, Loading } from '../ui';
 import { AlarmBanner, useBlockingAlarms } from './AlarmBanner';
-import { LoginPage } from './auth/LoginPage';
 import { AuthMenu } from './auth/UserControls';
 import { ErrorBoundary } from './ErrorBoundary';
-import { FleetPage } from './FleetPage';
-import { MachinePage } from './MachinePage';
+import { AuditPage, FleetPage, LoginPage, MachinePage } from './pages';
 import { Link, matchRoute, useLocation } from './router';
-
-const AuditPage = lazyView(() => import('./audit/AuditPage'), 'AuditPage');
 
 type ThemeChoice = 'system' | 'light' | 'dark';
 
@@ -37,9 +32,6 @@ export function App() {
   const user = useStore(authStore, (s) => s.user);
   const openOnNetwork = useStore(authStore, (s) => s.openOnNetwork === true);
   const blocking = useBlockingAlarms();
-  const familyPages = Object.values(controllers).flatMap((m) =>
-    (m?.pages ?? []).map((p) => ({ kind: m.kind, ...p })),
-  );
 
   let body: React.ReactNode;
   switch (route.name) {
@@ -116,12 +108,14 @@ export function App() {
         )}
         {mode === 'secured' && !user && route.name !== 'login' ? (
           <main className="main">
-            <LoginPage />
+            <Suspense fallback={<Loading />}>
+              <LoginPage />
+            </Suspense>
           </main>
         ) : (
           <main className="main">
             <ErrorBoundary label="Page">
-              {/* Pages other than the fleet and a machine are chunks of their own (issue 16). */}
+              {/* Every page is a chunk of its own (issue 16). */}
               <Suspense fallback={<Loading />}>{body}</Suspense>
             </ErrorBoundary>
           </main>

@@ -1,8 +1,10 @@
 // @vitest-environment happy-dom
 import { act, cleanup, render, screen, within } from '@testing-library/react';
 import { afterEach, beforeEach, describe, expect, it, vi } from 'vitest';
+import { registerController } from '../controllers';
 import type { ControllerModule, MachineSession, SessionContext } from '../fleet/contract';
 import { createRuntime, fleetStore, registerRuntime, getRuntime } from '../fleet/fleet';
+import { FleetPage } from './FleetPage';
 import { alwaysVisible } from '../fleet/link';
 import type { MachineInfo } from '../fleet/types';
 
@@ -23,20 +25,17 @@ function fakeModule(kind: 'xtool' | 'duet', TileExtra?: () => never): Controller
   };
 }
 
-vi.mock('../controllers', () => ({
-  controllers: {
-    xtool: fakeModule('xtool', () => {
-      throw new Error('tile exploded');
-    }),
-    duet: fakeModule('duet'),
-  },
-}));
-
-const { FleetPage } = await import('./FleetPage');
-const { controllers } = await import('../controllers');
+const controllers = {
+  xtool: fakeModule('xtool', () => {
+    throw new Error('tile exploded');
+  }),
+  duet: fakeModule('duet'),
+};
+registerController(controllers.xtool);
+registerController(controllers.duet);
 
 function addMachine(info: MachineInfo) {
-  const mod = controllers[info.kind];
+  const mod = info.kind === 'xtool' || info.kind === 'duet' ? controllers[info.kind] : undefined;
   const rt = createRuntime(info, mod ? (c) => mod.createSession(c) : null, { visibility: alwaysVisible });
   registerRuntime(rt);
   return rt;

@@ -1,5 +1,5 @@
 import { useStore } from 'zustand';
-import { controllers } from '../controllers';
+import { FAMILY_LABELS, useController } from '../controllers';
 import { getRuntime, fleetStore, type MachineRuntime } from '../fleet/fleet';
 import { preloadViews } from '../fleet/lazy';
 import { linkWords } from '../fleet/contract';
@@ -8,6 +8,7 @@ import { mostSevereAlarm, type Activity, type MachineInfo } from '../fleet/types
 import { Badge, EmptyState, Notice, ProgressBar, formatDuration, formatPercent } from '../ui';
 import { Age } from './Age';
 import { ErrorBoundary } from './ErrorBoundary';
+import { MachinePage } from './pages';
 import { Link } from './router';
 import { ACTIVITY_TONE, ACTIVITY_WORDS, LINK_TONE } from './status';
 import { useEffect, useId, useState } from 'react';
@@ -105,11 +106,13 @@ function TileBody({ info, rt }: { info: MachineInfo; rt: MachineRuntime }) {
     updatedAt: x.updatedAt,
     problem: x.problem,
   }));
-  const mod = controllers[info.kind];
+  // Undefined while the family's code loads (the tile shows its state meanwhile).
+  const mod = useController(info.kind);
   const alarm = mostSevereAlarm(s.alarms.filter((a) => !a.acknowledged));
   const Extra = mod?.TileExtra;
   const nameId = useId();
-  const preloadFirstTab = () => preloadViews(mod?.tabs.slice(0, 1).map((t) => t.Component) ?? []);
+  const preloadFirstTab = () =>
+    preloadViews([MachinePage, ...(mod?.tabs.slice(0, 1).map((t) => t.Component) ?? [])]);
   // One link per tile, the machine's name; it covers the tile for the pointer (CSS), and any
   // control on the tile sits above it. No clickable <article>.
   return (
@@ -117,6 +120,8 @@ function TileBody({ info, rt }: { info: MachineInfo; rt: MachineRuntime }) {
       className={`tile activity-${s.activity}${alarm?.severity === 'critical' ? ' has-critical' : ''}`}
       data-testid={`tile-${info.id}`}
       data-activity={s.activity}
+      // When the data it shows arrived (page clock): the 100-machine bench times data to DOM with it.
+      data-updated-at={s.updatedAt ?? undefined}
       aria-labelledby={nameId}
     >
       <header>
@@ -125,7 +130,7 @@ function TileBody({ info, rt }: { info: MachineInfo; rt: MachineRuntime }) {
             <Link
               to={`/m/${encodeURIComponent(info.id)}`}
               className="tile-name"
-              // The machine page's first tab is its own chunk: fetched as the finger or pointer comes.
+              // The machine page and its first tab are chunks: fetched as the finger or pointer comes.
               onPointerEnter={preloadFirstTab}
               onFocus={preloadFirstTab}
               onTouchStart={preloadFirstTab}
@@ -134,7 +139,7 @@ function TileBody({ info, rt }: { info: MachineInfo; rt: MachineRuntime }) {
             </Link>
           </h3>
           <div className="ui-muted small">
-            {mod?.label ?? info.kind}
+            {FAMILY_LABELS[info.kind]}
             {info.simulated && (
               <Badge tone="warn" plain title="This machine is simulated: nothing real moves">
                 simulated

@@ -1,6 +1,6 @@
 import { Suspense, useEffect, type ComponentType } from 'react';
 import { useStore } from 'zustand';
-import { controllers } from '../controllers';
+import { FAMILY_LABELS, useController } from '../controllers';
 import { linkWords, type TabProps, type MachineSession } from '../fleet/contract';
 import { fleetStore, getRuntime, type MachineRuntime } from '../fleet/fleet';
 import { lazyView, preloadViews, whenIdle } from '../fleet/lazy';
@@ -40,7 +40,7 @@ export function MachinePage({ id, tab }: { id: string; tab: string | null }) {
 
 function MachinePageBody({ rt, tab }: { rt: MachineRuntime; tab: string | null }) {
   const info = rt.info;
-  const mod = controllers[info.kind];
+  const mod = useController(info.kind);
   const role = useRole();
   const s = useSnapshot(rt, (x) => ({
     link: x.link,
@@ -66,7 +66,12 @@ function MachinePageBody({ rt, tab }: { rt: MachineRuntime; tab: string | null }
     tabs.push({ id: 'simulator', label: 'Simulator', render: () => <SimulatorPanel id={info.id} /> });
   const current = tabs.find((t) => t.id === tab) ?? tabs[0];
   // The other tabs' code, when the browser has nothing else to do: a tab switch is instant.
-  useEffect(() => whenIdle(() => preloadViews(mod?.tabs.map((t) => t.Component) ?? [])), [mod]);
+  // After the machine's data shows (the first screen is not slowed by tabs not asked for).
+  const shown = s.link === 'online';
+  useEffect(
+    () => (shown ? whenIdle(() => preloadViews(mod?.tabs.map((t) => t.Component) ?? [])) : undefined),
+    [mod, shown],
+  );
   const LoginForm = mod?.LoginForm as ComponentType<TabProps<MachineSession>> | undefined;
 
   return (
@@ -74,7 +79,7 @@ function MachinePageBody({ rt, tab }: { rt: MachineRuntime; tab: string | null }
       <div className="machine-head">
         <div>
           <div className="crumbs ui-muted small">
-            <Link to="/">Fleet</Link> / {mod?.label ?? info.kind}
+            <Link to="/">Fleet</Link> / {FAMILY_LABELS[info.kind]}
           </div>
           <h1>{info.name}</h1>
           <div className="ui-muted small">{s.identity ?? info.id}</div>
@@ -136,11 +141,16 @@ function MachinePageBody({ rt, tab }: { rt: MachineRuntime; tab: string | null }
         ))}
       </nav>
       <div className="tab-body">
-        {current && (
-          <ErrorBoundary key={current.id} label={`${info.name} · ${current.label}`}>
-            {/* A family's tab is its own chunk, loaded when first shown (issue 16). */}
-            <Suspense fallback={<Loading />}>{current.render()}</Suspense>
-          </ErrorBoundary>
+        {/* The family's code is still loading: its tabs come with it. */}
+        {!session && !rt.error && tab !== 'events' ? (
+          <Loading />
+        ) : (
+          current && (
+            <ErrorBoundary key={current.id} label={`${info.name} · ${current.label}`}>
+              {/* A family's tab is its own chunk, loaded when first shown (issue 16). */}
+              <Suspense fallback={<Loading />}>{current.render()}</Suspense>
+            </ErrorBoundary>
+          )
         )}
       </div>
     </div>

@@ -1,8 +1,18 @@
 import { z } from 'zod';
-import { controllers } from '../controllers';
+import { FAMILY_LABELS, loadController, registerController } from '../controllers';
 import { authStore } from '../fleet/auth';
-import { createRuntime, fleetStore, getRuntime, registerRuntime, allRuntimes } from '../fleet/fleet';
-import { MACHINE_KINDS, type MachineInfo } from '../fleet/types';
+import {
+  allRuntimes,
+  attachSession,
+  fleetStore,
+  getRuntime,
+  pendingRuntime,
+  registerRuntime,
+  type MachineRuntime,
+} from '../fleet/fleet';
+import { whenIdle } from '../fleet/lazy';
+import { backoffDelay } from '../fleet/link';
+import { MACHINE_KINDS, type MachineInfo, type MachineKind } from '../fleet/types';
 import { CONSOLE_HEADERS } from '../fleet/origin';
 import { fetchSession, trackActivity } from './auth/api';
 
@@ -53,21 +63,83 @@ export async function boot(): Promise<void> {
     });
     return;
   }
+  const created: MachineRuntime[] = [];
   for (const m of machines) {
     if (getRuntime(m.id)) continue;
-    const mod = controllers[m.kind];
-    const rt = createRuntime(m, mod ? (ctx) => mod.createSession(ctx) : null);
+    const rt = pendingRuntime(m);
     registerRuntime(rt);
+    created.push(rt);
   }
   fleetStore.setState({ status: 'ready', machines, error: null });
-  for (const rt of allRuntimes()) {
-    try {
-      rt.session?.start();
-    } catch (e) {
-      rt.log.error('console', `session failed to start: ${e instanceof Error ? e.message : String(e)}`);
-    }
-  }
+  // Each family's code loads on its own; its machines start when it is there. On a machine's
+  // page (a kiosk tablet) that machine's family comes first and the others when the browser is
+  // idle after it (they still come: an alarm of any machine shows on every page).
+  const start = (kind: MachineKind): void =>
+    startFamily(
+      kind,
+      created.filter((rt) => rt.info.kind === kind),
+    );
+  const kinds = [...new Set(created.map((rt) => rt.info.kind))];
+  const first = created.find((rt) => rt.info.id === machineInView())?.info.kind;
+  if (first) {
+    start(first);
+    const rest = (): void => {
+      for (const k of kinds) if (k !== first) start(k);
+    };
+    void loadController(first).then(
+      () => whenIdle(rest),
+      () => rest(),
+    );
+  } else for (const k of kinds) start(k);
   window.addEventListener('pagehide', () => {
     for (const rt of allRuntimes()) rt.session?.stop();
   });
+}
+
+/** The machine whose page is open (`/m/<id>…`), if one is. */
+function machineInView(): string | null {
+  const m = /^\/m\/([^/]+)/.exec(location.pathname);
+  if (!m?.[1]) return null;
+  try {
+    return decodeURIComponent(m[1]);
+  } catch {
+    return null;
+  }
+}
+
+/** Tries to load a family's code this many times (backing off) before saying so on its machines. */
+const FAMILY_LOAD_TRIES = 4;
+
+/**
+ * Loads a family's code, then makes and starts its machines' sessions. A chunk that cannot be
+ * loaded (the console server restarting, a flaky network) is tried again; after that the
+ * machines say why they show nothing.
+ */
+export function startFamily(kind: MachineKind, rts: MachineRuntime[], attempt = 0): void {
+  loadController(kind).then(
+    (mod) => {
+      for (const rt of rts) attachSession(rt, (ctx) => mod.createSession(ctx));
+      registerController(mod);
+      for (const rt of rts) {
+        try {
+          rt.session?.start();
+        } catch (e) {
+          rt.log.error('console', `session failed to start: ${e instanceof Error ? e.message : String(e)}`);
+        }
+      }
+    },
+    (e: unknown) => {
+      if (attempt + 1 < FAMILY_LOAD_TRIES) {
+        setTimeout(() => startFamily(kind, rts, attempt + 1), backoffDelay(attempt));
+        return;
+      }
+      const why = e instanceof Error ? e.message : String(e);
+      for (const rt of rts)
+        attachSession(
+          rt,
+          null,
+          `The console could not load its ${FAMILY_LABELS[kind]} code (${why}). Reload the page.`,
+        );
+    },
+  );
 }

@@ -1,6 +1,7 @@
 // @vitest-environment happy-dom
 import { act, cleanup, fireEvent, render, screen, within } from '@testing-library/react';
-import { afterEach, beforeAll, describe, expect, it, vi } from 'vitest';
+import { afterEach, beforeAll, describe, expect, it } from 'vitest';
+import { registerController } from '../controllers';
 import type { ControllerModule, MachineSession, SessionContext } from '../fleet/contract';
 import { createRuntime, fleetStore, registerRuntime, type MachineRuntime } from '../fleet/fleet';
 import { alwaysVisible } from '../fleet/link';
@@ -38,19 +39,18 @@ function fakeModule(): ControllerModule {
   };
 }
 
-vi.mock('../controllers', () => ({ controllers: { duet: fakeModule() } }));
+const duetModule = fakeModule();
+registerController(duetModule);
 
 const { App } = await import('./App');
 const { FleetPage } = await import('./FleetPage');
 const { MachinePage } = await import('./MachinePage');
-const { controllers } = await import('../controllers');
 
 const MILL: MachineInfo = { id: 'mill', name: 'Mill one', kind: 'duet', simulated: false };
 let rt: MachineRuntime;
 
 beforeAll(() => {
-  const mod = controllers.duet;
-  rt = createRuntime(MILL, mod ? (c) => mod.createSession(c) : null, { visibility: alwaysVisible });
+  rt = createRuntime(MILL, (c) => duetModule.createSession(c), { visibility: alwaysVisible });
   registerRuntime(rt);
   rt.session?.start();
   rt.snapshot.setState({ link: 'online', activity: 'idle', activityLabel: 'Idle', updatedAt: Date.now() });

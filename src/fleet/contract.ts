@@ -353,8 +353,6 @@ export interface ControllerModule<S extends MachineSession = MachineSession> ext
   TileExtra?: ComponentType<TabProps<S>>;
   /** Optional login form when the link says needs-login. */
   LoginForm?: ComponentType<TabProps<S>>;
-  /** Family-level pages outside any machine (xTool "Find lasers"), routed at `/<kind>/<path>`. */
-  pages?: Array<{ path: string; label: string; Component: ComponentType }>;
 }
 
 /** Erases the session type so modules of all families fit one registry. */

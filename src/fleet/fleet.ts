@@ -14,6 +14,9 @@ export interface MachineRuntime {
   snapshot: StoreApi<MachineSnapshot>;
   log: MachineLog;
   commands: CommandRunner;
+  /** The context its session gets (kept: the session is made when the family's code has loaded). */
+  readonly ctx: SessionContext;
+  /** Null until the family's code has loaded (or when it could not be made: `error`). */
   session: MachineSession | null;
   /** Set when the family module failed to create a session (shown in the tile, not thrown). */
   error: string | null;
@@ -24,6 +27,8 @@ export interface RuntimeOptions {
   now?: () => number;
   principal?: () => Principal;
 }
+
+export type SessionFactory = (ctx: SessionContext) => MachineSession;
 
 /** Builds the context a session gets. Used by the app and by tests. */
 export function createContext(info: MachineInfo, opts: RuntimeOptions = {}): SessionContext {
@@ -52,32 +57,62 @@ export function createContext(info: MachineInfo, opts: RuntimeOptions = {}): Ses
   };
 }
 
-export function createRuntime(
-  info: MachineInfo,
-  createSession: ((ctx: SessionContext) => MachineSession) | null,
-  opts: RuntimeOptions = {},
-): MachineRuntime {
+/**
+ * A machine whose family's code is still loading: its tile shows "Connecting…" and its session
+ * comes with `attachSession`.
+ */
+export function pendingRuntime(info: MachineInfo, opts: RuntimeOptions = {}): MachineRuntime {
   const ctx = createContext(info, opts);
-  let session: MachineSession | null = null;
+  return {
+    info,
+    snapshot: ctx.snapshot,
+    log: ctx.log,
+    commands: ctx.commands,
+    ctx,
+    session: null,
+    error: null,
+  };
+}
+
+/**
+ * Gives a runtime its session (`createSession` null: the family has no module, or `failure`: its
+ * code could not be loaded). A failure is shown on the machine, never thrown.
+ */
+export function attachSession(
+  rt: MachineRuntime,
+  createSession: SessionFactory | null,
+  failure?: string,
+): void {
   let error: string | null = null;
   if (!createSession) {
-    error = `No controller module for kind "${info.kind}"`;
+    error = failure ?? `No controller module for kind "${rt.info.kind}"`;
   } else {
     try {
-      session = createSession(ctx);
+      rt.session = createSession(rt.ctx);
     } catch (e) {
       error = e instanceof Error ? e.message : String(e);
     }
   }
+  rt.error = error;
   if (error) {
-    ctx.snapshot.setState({
+    rt.ctx.snapshot.setState({
       link: 'protocol-error',
       problem: { kind: 'internal', message: error },
       activityLabel: error,
     });
-    ctx.log.error('console', error);
+    rt.ctx.log.error('console', error);
   }
-  return { info, snapshot: ctx.snapshot, log: ctx.log, commands: ctx.commands, session, error };
+}
+
+/** A runtime with its session made now (tests, and boot once a family has loaded). */
+export function createRuntime(
+  info: MachineInfo,
+  createSession: SessionFactory | null,
+  opts: RuntimeOptions = {},
+): MachineRuntime {
+  const rt = pendingRuntime(info, opts);
+  attachSession(rt, createSession);
+  return rt;
 }
 
 /** The fleet: the list of machines (reactive) and their runtimes (by id). */

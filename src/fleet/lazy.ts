@@ -20,17 +20,39 @@ export function lazyView<M extends { [k in K]: ComponentType<never> }, K extends
 ): LazyView<PropsOf<M[K]>> {
   type P = PropsOf<M[K]>;
   let loading: Promise<M> | null = null;
+  let loaded: M | null = null;
   const get = (): Promise<M> => {
-    loading ??= load().catch((e: unknown) => {
-      // A failed load may succeed later (the console server restarted): try again next time.
-      loading = null;
-      throw e;
-    });
+    loading ??= load().then(
+      (m) => (loaded = m),
+      (e: unknown) => {
+        // A failed load may succeed later (the console server restarted): try again next time.
+        loading = null;
+        throw e;
+      },
+    );
     return loading;
   };
-  const view = lazy(() => get().then((m) => ({ default: m[name] as ComponentType<P> }))) as LazyView<P>;
+  const view = lazy(() =>
+    // Already loaded (preloaded on hover or idle): a thenable that answers at once, so React
+    // renders the view in this pass instead of showing its fallback and then holding the view back
+    // (React keeps a fallback at least 300 ms once shown).
+    loaded
+      ? (resolvedThenable({ default: loaded[name] as ComponentType<P> }) as Promise<{
+          default: ComponentType<P>;
+        }>)
+      : get().then((m) => ({ default: m[name] as ComponentType<P> })),
+  ) as LazyView<P>;
   view.preload = get;
   return view;
+}
+
+/** A thenable that calls back synchronously (React's lazy reads it as resolved at once). */
+function resolvedThenable<T>(value: T): PromiseLike<T> {
+  return {
+    then<A = T, B = never>(ok?: ((v: T) => A | PromiseLike<A>) | null): PromiseLike<A | B> {
+      return resolvedThenable(ok ? (ok(value) as A) : (value as unknown as A));
+    },
+  };
 }
 
 /** Whether a component is a lazy view (it can be loaded ahead of time). */

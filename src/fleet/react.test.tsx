@@ -140,4 +140,34 @@ describe('useNow', () => {
       vi.useRealTimers();
     }
   });
+
+  it('does not re-render a hidden page for the clock, and reads the time at once when shown', () => {
+    vi.useFakeTimers();
+    const hidden = vi.spyOn(document, 'hidden', 'get');
+    try {
+      let renders = 0;
+      function Clock() {
+        const now = useNow(1000);
+        renders++;
+        return <span data-testid="clock">{now}</span>;
+      }
+      const view = render(<Clock />);
+      const start = Number(screen.getByTestId('clock').textContent);
+      hidden.mockReturnValue(true);
+      const before = renders;
+      act(() => {
+        vi.advanceTimersByTime(5000);
+      });
+      expect(renders).toBe(before);
+      hidden.mockReturnValue(false);
+      act(() => {
+        document.dispatchEvent(new Event('visibilitychange'));
+      });
+      expect(Number(screen.getByTestId('clock').textContent)).toBe(start + 5000);
+      view.unmount();
+    } finally {
+      hidden.mockRestore();
+      vi.useRealTimers();
+    }
+  });
 });

@@ -44,16 +44,35 @@ function clockOf(everyMs: number) {
   return c;
 }
 
+const pageHidden = (): boolean => typeof document !== 'undefined' && document.hidden;
+
+function tick(c: { now: number; listeners: Set<() => void> }): void {
+  c.now = Date.now();
+  for (const l of [...c.listeners]) l();
+}
+
+let watchingVisibility = false;
+/** Shown again: every running clock reads the time at once. */
+function watchVisibility(): void {
+  if (watchingVisibility || typeof document === 'undefined') return;
+  watchingVisibility = true;
+  document.addEventListener('visibilitychange', () => {
+    if (pageHidden()) return;
+    for (const c of clocks.values()) if (c.timer !== null) tick(c);
+  });
+}
+
 function subscribeClock(everyMs: number, listener: () => void): () => void {
   const c = clockOf(everyMs);
   c.listeners.add(listener);
   if (c.timer === null) {
     c.now = Date.now();
     // One timer for every reader of this period: they all update in the same frame.
+    // A hidden page shows nothing: it does not re-render for the clock (it catches up when shown).
     c.timer = setInterval(() => {
-      c.now = Date.now();
-      for (const l of [...c.listeners]) l();
+      if (!pageHidden()) tick(c);
     }, everyMs);
+    watchVisibility();
   }
   return () => {
     c.listeners.delete(listener);

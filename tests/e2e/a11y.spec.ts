@@ -73,6 +73,8 @@ test.describe('accessibility (axe)', () => {
 
   for (const id of MACHINES) {
     test(`machine page ${id}, every tab`, async ({ page }, info) => {
+      // An axe run per tab: 20–50 s on this machine, more when it is busy (CI once hit 60 s).
+      test.slow();
       await page.goto(`/m/${id}`);
       await expect(page.getByTestId('machine-link')).toHaveText('Online');
       const names = await sections(page).getByRole('link').allInnerTexts();

@@ -4,7 +4,7 @@ import type { MachineEntry } from '../../gateway/machines';
 import { startSimServer, type SimServer } from '../../gateway/sim-server';
 import { startGateway, tempDir, type Running } from '../../gateway/test-util';
 import { STALE_MS } from '../../src/app/status';
-import { controllers } from '../../src/controllers';
+import { loadController } from '../../src/controllers';
 import { DuetSimulator } from '../../src/controllers/duet/sim/simulator';
 import { families } from '../../src/controllers/families';
 import type { PruntSession } from '../../src/controllers/prunt/session';
@@ -15,7 +15,7 @@ import { createContext } from '../../src/fleet/fleet';
 import { alwaysVisible } from '../../src/fleet/link';
 import { apiOrigin, setApiOrigin } from '../../src/fleet/origin';
 import type { Simulator } from '../../src/fleet/sim';
-import type { LinkState, MachineKind } from '../../src/fleet/types';
+import { MACHINE_KINDS, type LinkState, type MachineKind } from '../../src/fleet/types';
 import { startFaultProxy, type FaultMode, type FaultProxy } from './proxy';
 
 /**
@@ -156,6 +156,11 @@ function entryOf(m: Omit<Machine, 'ctx' | 'session'>): MachineEntry {
           : {},
   };
 }
+
+/** Every family's browser code (each is a chunk of its own in the page). */
+const controllers = Object.fromEntries(
+  await Promise.all(MACHINE_KINDS.map(async (k) => [k, await loadController(k)] as const)),
+);
 
 /** The family's real browser session, from its controller module, on a fresh context. */
 function newSession(kind: Kind, id: string): { ctx: SessionContext; session: MachineSession } {

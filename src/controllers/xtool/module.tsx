@@ -5,13 +5,12 @@ import { TileExtra } from './views/TileExtra';
 import { lazyView } from '../../fleet/lazy';
 
 const Console = lazyView(() => import('./views/Console'), 'Console');
-const Discover = lazyView(() => import('./views/Discover'), 'Discover');
 const Files = lazyView(() => import('./views/Files'), 'Files');
 const Firmware = lazyView(() => import('./views/Firmware'), 'Firmware');
 const Overview = lazyView(() => import('./views/Overview'), 'Overview');
 const Safety = lazyView(() => import('./views/Safety'), 'Safety');
 
-/** The browser side of the xTool D-series family: session, tabs, fleet tile extra, "Find lasers". */
+/** The browser side of the xTool D-series family: session, tabs, fleet tile extra (its "Find lasers" page is listed in ../index.ts). */
 export const xtoolModule = defineController<XtoolSession>({
   ...xtoolDeclaration,
   createSession: (ctx) => new XtoolSession(ctx),
@@ -23,5 +22,4 @@ export const xtoolModule = defineController<XtoolSession>({
     { id: 'firmware', label: 'Firmware', Component: Firmware, role: 'supervisor' },
   ],
   TileExtra,
-  pages: [{ path: 'discover', label: 'Find lasers', Component: Discover }],
 });

@@ -2,7 +2,7 @@ import { useState } from 'react';
 import { useConsoleCommand } from '../../../fleet/console';
 import type { TabProps } from '../../../fleet/contract';
 import { LogView, useStoreSelect } from '../../../fleet/react';
-import { GcodeConsole } from '../../../ui';
+import { GcodeConsole } from '../../../ui/GcodeConsole';
 import type { DuetSession } from '../session';
 import { DuetFrame } from './common';
 

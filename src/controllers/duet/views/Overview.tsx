@@ -6,7 +6,6 @@ import {
   KeyValues,
   Panel,
   ProgressBar,
-  TimeSeriesChart,
   formatBytes,
   formatDuration,
   formatNumber,
@@ -15,6 +14,7 @@ import {
   type Series,
   type Tone,
 } from '../../../ui';
+import { TimeSeriesChart } from '../../../ui/TimeSeriesChart';
 import { baseName } from '../client';
 import type { DuetSession } from '../session';
 import { heaterName, isPrinting, jobProgress, statusWords } from '../snapshot';

@@ -1,6 +1,7 @@
 import { useConsoleCommand } from '../../../fleet/console';
 import { useStoreSelect } from '../../../fleet/react';
-import { GcodeConsole, Panel, type GcodeLine } from '../../../ui';
+import { Panel, type GcodeLine } from '../../../ui';
+import { GcodeConsole } from '../../../ui/GcodeConsole';
 import type { ConsoleEntry, G2coreSession } from '../session';
 import { Dro, StatBadge, WhyNot } from './common';
 

@@ -1,7 +1,8 @@
 import { useStore } from 'zustand';
 import { useConsoleCommand } from '../../../fleet/console';
 import type { TabProps } from '../../../fleet/contract';
-import { GcodeConsole, type GcodeLine } from '../../../ui';
+import { type GcodeLine } from '../../../ui';
+import { GcodeConsole } from '../../../ui/GcodeConsole';
 import type { GcodeEntry, PruntSession } from '../session';
 
 /** What a command looks like: Gcode_Command's state and ID, and the output the server sent. */

@@ -1,6 +1,7 @@
 import { useMemo, useState } from 'react';
 import { useStore } from 'zustand';
-import { Button, TimeSeriesChart, type Series } from '../../../ui';
+import { Button, type Series } from '../../../ui';
+import { TimeSeriesChart } from '../../../ui/TimeSeriesChart';
 import type { PruntSession } from '../session';
 
 const WINDOWS = [

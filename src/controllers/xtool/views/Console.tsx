@@ -1,7 +1,8 @@
 import { useConsoleCommand } from '../../../fleet/console';
 import type { TabProps } from '../../../fleet/contract';
 import { useStoreSelect } from '../../../fleet/react';
-import { GcodeConsole, type GcodeLine } from '../../../ui';
+import { type GcodeLine } from '../../../ui';
+import { GcodeConsole } from '../../../ui/GcodeConsole';
 import type { ConsoleEntry, XtoolSession } from '../session';
 
 /** What a line looks like: the laser's one reply (or the error), nothing else comes back. */

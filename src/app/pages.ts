@@ -1,0 +1,11 @@
+import { lazyView } from '../fleet/lazy';
+
+/**
+ * The console's pages, each a chunk of its own loaded when its route is first shown (issue 16):
+ * a tablet opening one machine does not load the fleet page, nor the login form when it has a
+ * session. The fleet page preloads the machine page when a tile's link is pointed at.
+ */
+export const FleetPage = lazyView(() => import('./FleetPage'), 'FleetPage');
+export const MachinePage = lazyView(() => import('./MachinePage'), 'MachinePage');
+export const LoginPage = lazyView(() => import('./auth/LoginPage'), 'LoginPage');
+export const AuditPage = lazyView(() => import('./audit/AuditPage'), 'AuditPage');
