@@ -1,10 +1,12 @@
 import react from '@vitejs/plugin-react';
 import { defineConfig } from 'vite';
 import { shopdeckGateway } from './gateway/plugin';
+import { bundleReport } from './scripts/bundle-report';
 
 // The gateway is a Vite plugin: the same code serves `npm run dev` and `npm start` (vite preview).
 export default defineConfig({
-  plugins: [react(), shopdeckGateway()],
+  // The bundle report (bundle-report/bundle.{json,md}): sizes of what each screen loads.
+  plugins: [react(), shopdeckGateway(), bundleReport()],
   server: { port: Number(process.env.SHOPDECK_PORT ?? 5173), host: process.env.SHOPDECK_HOST ?? 'localhost' },
   preview: {
     port: Number(process.env.SHOPDECK_PORT ?? 4173),

@@ -8,6 +8,8 @@ export default defineConfig({
       'server/**/*.test.ts',
       'tests/unit/**/*.test.{ts,tsx}',
       'tests/faults/**/*.test.ts',
+      'tests/bundle/**/*.test.ts',
+      'scripts/**/*.test.ts',
     ],
     environment: 'node',
     setupFiles: ['tests/setup.ts'],
