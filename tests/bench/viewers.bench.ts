@@ -24,19 +24,14 @@
  * `BENCH_VIEWER_SECONDS=10 npx tsx tests/bench/viewers.bench.ts` for a quick run;
  * `npm run bench -- viewers` for the report. Needs a built dist/ (built here when missing).
  */
-import { execFileSync, spawn, type ChildProcess } from 'node:child_process';
-import { existsSync, mkdtempSync, rmSync, writeFileSync } from 'node:fs';
+import { mkdtempSync, rmSync, writeFileSync } from 'node:fs';
 import os from 'node:os';
 import path from 'node:path';
-import { pathToFileURL } from 'node:url';
-import { chromium, type Browser, type BrowserContext, type Page } from '@playwright/test';
+import { type Browser, type BrowserContext, type Page } from '@playwright/test';
 import { startSimFleet, type SimFleet, type SimServer, type SimServerStats } from '../../gateway/sim-server';
 import { families } from '../../src/controllers/families';
+import { launchChromium, stopOnSignal, ensureDist, sleep, startServer, type Server } from './harness';
 import { report, round } from './util';
-
-const root = path.resolve(import.meta.dirname, '..', '..');
-const distDir = path.join(root, 'dist');
-const tsxLoader = pathToFileURL(path.join(root, 'node_modules', 'tsx', 'dist', 'loader.mjs')).href;
 
 const SECONDS = Number(process.env.BENCH_VIEWER_SECONDS ?? 60);
 /** After the pages are loaded (or hidden), before counting starts. */
@@ -69,120 +64,8 @@ interface Measured {
 const log = (msg: string): void => {
   process.stderr.write(`viewers.bench: ${msg}\n`);
 };
-const sleep = (ms: number): Promise<void> => new Promise((r) => setTimeout(r, ms));
 
 // ---------------------------------------------------------------- setup
-
-function ensureDist(): void {
-  if (existsSync(path.join(distDir, 'index.html'))) return;
-  log('dist/index.html is missing: running `npm run build`…');
-  try {
-    // The build's output goes to stderr: stdout carries only result lines.
-    execFileSync('npm', ['run', 'build'], { cwd: root, stdio: ['ignore', 2, 2] });
-  } catch {
-    /* reported below */
-  }
-  if (!existsSync(path.join(distDir, 'index.html')))
-    throw new Error(
-      'dist/index.html is missing and `npm run build` did not make it: build the console first',
-    );
-}
-
-interface Server {
-  base: string;
-  stop(): Promise<void>;
-}
-
-function cleanEnv(): NodeJS.ProcessEnv {
-  const env: NodeJS.ProcessEnv = {};
-  for (const [k, v] of Object.entries(process.env))
-    if (!k.startsWith('SHOPDECK_') && k !== 'PORT') env[k] = v;
-  return env;
-}
-
-/** The production server as a child process, in open mode, on a free port. */
-function startServer(work: string, machinesFile: string): Promise<Server> {
-  const dataDir = path.join(work, 'data');
-  const child: ChildProcess = spawn(
-    process.execPath,
-    [
-      '--import',
-      tsxLoader,
-      path.join(root, 'server', 'main.ts'),
-      '--dist',
-      distDir,
-      '--host',
-      '127.0.0.1',
-      '--port',
-      '0',
-    ],
-    {
-      cwd: work,
-      env: {
-        ...cleanEnv(),
-        TSX_TSCONFIG_PATH: path.join(root, 'tsconfig.json'),
-        SHOPDECK_DATA: dataDir,
-        SHOPDECK_MACHINES: machinesFile,
-        SHOPDECK_LOG: 'json',
-      },
-      stdio: ['ignore', 'pipe', 'pipe'],
-    },
-  );
-  const tail: string[] = [];
-  let port: number | null = null;
-  const exited = new Promise<number | null>((r) => child.once('exit', (code) => r(code)));
-  const onLine = (line: string): void => {
-    tail.push(line);
-    if (tail.length > 50) tail.shift();
-    if (port === null && line.startsWith('{')) {
-      try {
-        const e = JSON.parse(line) as { msg?: unknown; port?: unknown };
-        if (e.msg === 'listening' && typeof e.port === 'number') port = e.port;
-      } catch {
-        /* not a log entry */
-      }
-    }
-  };
-  for (const stream of [child.stdout, child.stderr]) {
-    if (!stream) continue;
-    let rest = '';
-    stream.setEncoding('utf8');
-    stream.on('data', (chunk: string) => {
-      const parts = (rest + chunk).split('\n');
-      rest = parts.pop() ?? '';
-      for (const l of parts) onLine(l);
-    });
-  }
-  const stop = async (): Promise<void> => {
-    if (child.exitCode !== null || child.signalCode !== null) return;
-    child.kill('SIGTERM');
-    const timer = setTimeout(() => child.kill('SIGKILL'), 6000);
-    await exited;
-    clearTimeout(timer);
-  };
-  return new Promise((resolve, reject) => {
-    const fail = (why: string): void => {
-      clearInterval(poll);
-      clearTimeout(timer);
-      void stop().then(() => reject(new Error(`${why}:\n${tail.join('\n')}`)));
-    };
-    const timer = setTimeout(() => fail('the server did not start within 30 s'), 30_000);
-    void exited.then((code) => fail(`the server exited (${code})`));
-    const poll = setInterval(() => {
-      if (port === null) return;
-      clearInterval(poll);
-      clearTimeout(timer);
-      resolve({ base: `http://127.0.0.1:${port}`, stop });
-    }, 25);
-  });
-}
-
-function chromiumPath(): string | undefined {
-  return (
-    process.env.PLAYWRIGHT_CHROMIUM_PATH ??
-    (existsSync('/usr/bin/chromium') ? '/usr/bin/chromium' : undefined)
-  );
-}
 
 // ---------------------------------------------------------------- viewers
 
@@ -337,26 +220,13 @@ async function main(): Promise<void> {
     fleet = null;
     rmSync(work, { recursive: true, force: true });
   };
-  const onSignal = (): void => {
-    void cleanup().then(() => process.exit(130));
-  };
-  process.once('SIGINT', onSignal);
-  process.once('SIGTERM', onSignal);
+  const unhook = stopOnSignal(cleanup);
   try {
     fleet = await startSimFleet(families);
     const machinesFile = path.join(work, 'machines.json');
     writeFileSync(machinesFile, JSON.stringify(fleet.machinesFile, null, 2));
     server = await startServer(work, machinesFile);
-    const executablePath = chromiumPath();
-    browser = await chromium.launch({
-      ...(executablePath ? { executablePath } : {}),
-      args: [
-        '--no-sandbox',
-        '--disable-gpu',
-        '--disable-background-networking',
-        '--disable-component-update',
-      ],
-    });
+    browser = await launchChromium();
     const servers = fleet.servers;
     log(
       `${servers.length} controllers, server ${server.base}, ${SECONDS} s per case, ` +
@@ -392,8 +262,7 @@ async function main(): Promise<void> {
     }
     for (const p of pending.splice(0)) p();
   } finally {
-    process.off('SIGINT', onSignal);
-    process.off('SIGTERM', onSignal);
+    unhook();
     await cleanup();
   }
 }
