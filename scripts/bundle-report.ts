@@ -136,14 +136,20 @@ export function reportMarkdown(r: BundleReport): string {
   ].join('\n');
 }
 
-/** The Vite plugin: after the bundle is written, the report next to the project (never in dist). */
-export function bundleReport(outDir = path.resolve(import.meta.dirname, '..', 'bundle-report')): Plugin {
+/**
+ * The Vite plugin: after the bundle is written, the report in `bundle-report/` beside the output
+ * folder (`dist/` → the project's `bundle-report/`; a test's build in a temporary folder writes
+ * its own there, never over the project's). `outDir` overrides the place.
+ */
+export function bundleReport(outDir?: string): Plugin {
   let root = process.cwd();
+  let reportDir = outDir ?? '';
   return {
     name: 'shopdeck-bundle-report',
     apply: 'build',
     configResolved(config) {
       root = config.root;
+      reportDir = outDir ?? path.resolve(root, config.build.outDir, '..', 'bundle-report');
     },
     writeBundle(_options, bundle) {
       const chunks: ChunkInfo[] = [];
@@ -166,9 +172,9 @@ export function bundleReport(outDir = path.resolve(import.meta.dirname, '..', 'b
         }
       }
       const report: BundleReport = { chunks, css, screens: screensOf(chunks, css) };
-      mkdirSync(outDir, { recursive: true });
-      writeFileSync(path.join(outDir, 'bundle.json'), `${JSON.stringify(report, null, 1)}\n`);
-      writeFileSync(path.join(outDir, 'bundle.md'), reportMarkdown(report));
+      mkdirSync(reportDir, { recursive: true });
+      writeFileSync(path.join(reportDir, 'bundle.json'), `${JSON.stringify(report, null, 1)}\n`);
+      writeFileSync(path.join(reportDir, 'bundle.md'), reportMarkdown(report));
     },
   };
 }
