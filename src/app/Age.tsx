@@ -1,4 +1,5 @@
-import { useNow } from '../fleet/react';
+import type { SessionContext } from '../fleet/contract';
+import { useNow, useSnapshot } from '../fleet/react';
 import { formatAge, formatDateTime } from '../ui';
 import { STALE_MS } from './status';
 
@@ -15,6 +16,8 @@ export function Age({ at, testId = 'data-age' }: { at: number | null; testId?: s
       data-testid={testId}
       data-stale={stale}
       title={at === null ? undefined : formatDateTime(at)}
+      // When the data arrived (page clock): the 100-machine bench times data to DOM with it.
+      data-updated-at={at ?? undefined}
     >
       {at === null
         ? 'no data yet'
@@ -23,6 +26,15 @@ export function Age({ at, testId = 'data-age' }: { at: number | null; testId?: s
           : `updated ${formatAge(at, now)}`}
     </span>
   );
+}
+
+/**
+ * A machine's data age, reading the machine's `updatedAt` itself: a new answer that changes
+ * nothing else re-renders this line only, not the tile or page around it.
+ */
+export function MachineAge({ rt, testId }: { rt: Pick<SessionContext, 'snapshot'>; testId?: string }) {
+  const at = useSnapshot(rt, (x) => x.updatedAt);
+  return <Age at={at} {...(testId ? { testId } : {})} />;
 }
 
 /** " — next try in 3 s." while a retry is due (counts down on the shared clock), else nothing. */

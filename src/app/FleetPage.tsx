@@ -6,7 +6,7 @@ import { linkWords } from '../fleet/contract';
 import { useSnapshot } from '../fleet/react';
 import { mostSevereAlarm, type Activity, type MachineInfo } from '../fleet/types';
 import { Badge, EmptyState, Notice, ProgressBar, formatDuration, formatPercent } from '../ui';
-import { Age } from './Age';
+import { MachineAge } from './Age';
 import { ErrorBoundary } from './ErrorBoundary';
 import { MachinePage } from './pages';
 import { Link } from './router';
@@ -103,7 +103,6 @@ function TileBody({ info, rt }: { info: MachineInfo; rt: MachineRuntime }) {
     activityLabel: x.activityLabel,
     job: x.job,
     alarms: x.alarms,
-    updatedAt: x.updatedAt,
     problem: x.problem,
   }));
   // Undefined while the family's code loads (the tile shows its state meanwhile).
@@ -120,8 +119,6 @@ function TileBody({ info, rt }: { info: MachineInfo; rt: MachineRuntime }) {
       className={`tile activity-${s.activity}${alarm?.severity === 'critical' ? ' has-critical' : ''}`}
       data-testid={`tile-${info.id}`}
       data-activity={s.activity}
-      // When the data it shows arrived (page clock): the 100-machine bench times data to DOM with it.
-      data-updated-at={s.updatedAt ?? undefined}
       aria-labelledby={nameId}
     >
       <header>
@@ -192,7 +189,7 @@ function TileBody({ info, rt }: { info: MachineInfo; rt: MachineRuntime }) {
         <Badge tone={LINK_TONE[s.link]} testId="tile-link" title={s.problem?.message}>
           {linkWords(s.link)}
         </Badge>
-        <Age at={s.updatedAt} />
+        <MachineAge rt={rt} />
       </footer>
       {s.problem && s.link !== 'online' && s.problem.message !== s.activityLabel && (
         <div className="tile-problem small" title={s.problem.message}>

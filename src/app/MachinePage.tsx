@@ -2,12 +2,12 @@ import { Suspense, useEffect, type ComponentType } from 'react';
 import { useStore } from 'zustand';
 import { FAMILY_LABELS, useController } from '../controllers';
 import { linkWords, type TabProps, type MachineSession } from '../fleet/contract';
-import { fleetStore, getRuntime, type MachineRuntime } from '../fleet/fleet';
+import { fleetStore, getRuntime, showDetail, type MachineRuntime } from '../fleet/fleet';
 import { lazyView, preloadViews, whenIdle } from '../fleet/lazy';
 import { LogView, useRole, useSnapshot } from '../fleet/react';
 import { roleAtLeast } from '../fleet/types';
 import { Badge, EmptyState, Loading, Notice, Panel } from '../ui';
-import { Age, RetryIn } from './Age';
+import { MachineAge, RetryIn } from './Age';
 import { ErrorBoundary } from './ErrorBoundary';
 import { Link } from './router';
 import { ACTIVITY_TONE, ACTIVITY_WORDS, LINK_TONE } from './status';
@@ -46,7 +46,6 @@ function MachinePageBody({ rt, tab }: { rt: MachineRuntime; tab: string | null }
     link: x.link,
     activity: x.activity,
     activityLabel: x.activityLabel,
-    updatedAt: x.updatedAt,
     problem: x.problem,
     identity: x.identity,
     retryAt: x.retryAt,
@@ -65,6 +64,8 @@ function MachinePageBody({ rt, tab }: { rt: MachineRuntime; tab: string | null }
   if (info.simulated && roleAtLeast(role, 'supervisor'))
     tabs.push({ id: 'simulator', label: 'Simulator', render: () => <SimulatorPanel id={info.id} /> });
   const current = tabs.find((t) => t.id === tab) ?? tabs[0];
+  // While this page shows, the machine's detail reads run at full pace (4 Hz positions…).
+  useEffect(() => showDetail(info.id), [info.id]);
   // The other tabs' code, when the browser has nothing else to do: a tab switch is instant.
   // After the machine's data shows (the first screen is not slowed by tabs not asked for).
   const shown = s.link === 'online';
@@ -95,7 +96,7 @@ function MachinePageBody({ rt, tab }: { rt: MachineRuntime; tab: string | null }
             <Badge tone={LINK_TONE[s.link]} testId="machine-link">
               {linkWords(s.link)}
             </Badge>
-            <Age at={s.updatedAt} testId="machine-data-age" />
+            <MachineAge rt={rt} testId="machine-data-age" />
           </div>
         </div>
       </div>

@@ -17,12 +17,16 @@ function fakeModule(kind: MachineKind): ControllerModule {
       machine: ctx.machine,
       ctx,
       commands: {},
-      start: () => undefined,
+      start: () => {
+        if (kind === 'xtool') laserStarted = ctx;
+      },
       stop: () => undefined,
     }),
     tabs: [],
   };
 }
+
+let laserStarted: SessionContext | null = null;
 
 const answer = (body: unknown): Response =>
   new Response(JSON.stringify(body), { status: 200, headers: { 'Content-Type': 'application/json' } });
@@ -33,7 +37,7 @@ afterEach(() => {
 });
 
 describe('boot', () => {
-  it('loads the family of the machine in view first, the others only after it', async () => {
+  it('loads the family of the machine in view first, the others once it shows its data', async () => {
     history.replaceState(null, '', '/m/laser/files');
     const order: string[] = [];
     let releaseXtool: (() => void) | null = null;
@@ -67,6 +71,12 @@ describe('boot', () => {
     await new Promise((r) => setTimeout(r, 50));
     expect(order).toEqual(['xtool']);
     (releaseXtool as (() => void) | null)?.();
+    await vi.waitFor(() => expect(laserStarted).not.toBeNull());
+    // The laser's session runs but has no answer yet: the other families wait (they would have
+    // started 1.5 s after the laser's code loaded, when the browser was idle).
+    await new Promise((r) => setTimeout(r, 2000));
+    expect(order).toEqual(['xtool']);
+    (laserStarted as SessionContext | null)?.snapshot.setState({ link: 'online' });
     await vi.waitFor(() => expect(order).toEqual(['xtool', 'duet', 'g2core']), { timeout: 3000 });
   });
 });

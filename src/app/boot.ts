@@ -4,6 +4,7 @@ import { authStore } from '../fleet/auth';
 import {
   allRuntimes,
   attachSession,
+  detailShownOf,
   fleetStore,
   getRuntime,
   pendingRuntime,
@@ -66,7 +67,8 @@ export async function boot(): Promise<void> {
   const created: MachineRuntime[] = [];
   for (const m of machines) {
     if (getRuntime(m.id)) continue;
-    const rt = pendingRuntime(m);
+    // Its detail reads run at full pace only while its machine page shows.
+    const rt = pendingRuntime(m, { detail: detailShownOf(m.id) });
     registerRuntime(rt);
     created.push(rt);
   }
@@ -80,16 +82,27 @@ export async function boot(): Promise<void> {
       created.filter((rt) => rt.info.kind === kind),
     );
   const kinds = [...new Set(created.map((rt) => rt.info.kind))];
-  const first = created.find((rt) => rt.info.id === machineInView())?.info.kind;
-  if (first) {
+  const inView = created.find((rt) => rt.info.id === machineInView());
+  const first = inView?.info.kind;
+  if (inView && first) {
     start(first);
+    let started = false;
     const rest = (): void => {
+      if (started) return;
+      started = true;
       for (const k of kinds) if (k !== first) start(k);
     };
-    void loadController(first).then(
-      () => whenIdle(rest),
-      () => rest(),
-    );
+    // Once the machine in view shows its data (or could not: any answer but "connecting"), or
+    // after a few seconds at the latest, and then when the browser is idle.
+    const stop = inView.snapshot.subscribe((s) => {
+      if (s.link !== 'connecting') later();
+    });
+    const timer = setTimeout(() => later(), OTHERS_AFTER_MS);
+    function later(): void {
+      stop();
+      clearTimeout(timer);
+      whenIdle(rest);
+    }
   } else for (const k of kinds) start(k);
   window.addEventListener('pagehide', () => {
     for (const rt of allRuntimes()) rt.session?.stop();
@@ -106,6 +119,9 @@ function machineInView(): string | null {
     return null;
   }
 }
+
+/** On a machine's page, the other families start at the latest this long after boot. */
+const OTHERS_AFTER_MS = 3000;
 
 /** Tries to load a family's code this many times (backing off) before saying so on its machines. */
 const FAMILY_LOAD_TRIES = 4;

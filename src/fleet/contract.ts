@@ -316,6 +316,12 @@ export interface SessionContext {
   /** On-demand reads of this machine (files, settings, stats): src/fleet/kernel/query.ts. */
   queries: MachineQueries;
   visibility: Visibility;
+  /**
+   * Whether a page shows this machine's details now (its machine page). Reads that only feed
+   * details (positions at 4 Hz) may run at the tile's pace otherwise (issue 16: a fleet page of
+   * 100 machines). True where nothing says otherwise (tests, the fault matrix).
+   */
+  detail: () => boolean;
   now: () => number;
 }
 

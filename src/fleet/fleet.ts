@@ -26,6 +26,8 @@ export interface RuntimeOptions {
   visibility?: Visibility;
   now?: () => number;
   principal?: () => Principal;
+  /** Whether the machine's details are shown (default: always). */
+  detail?: () => boolean;
 }
 
 export type SessionFactory = (ctx: SessionContext) => MachineSession;
@@ -53,7 +55,27 @@ export function createContext(info: MachineInfo, opts: RuntimeOptions = {}): Ses
     commands,
     queries,
     visibility: opts.visibility ?? documentVisibility,
+    detail: opts.detail ?? (() => true),
     now,
+  };
+}
+
+/** How many open pages show each machine's details (`showDetail`). */
+const detailShown = new Map<string, number>();
+
+/** Whether a page shows this machine's details now. */
+export const detailShownOf = (id: string) => (): boolean => (detailShown.get(id) ?? 0) > 0;
+
+/** A machine page shows the machine's details from now on. Returns: it no longer does. */
+export function showDetail(id: string): () => void {
+  detailShown.set(id, (detailShown.get(id) ?? 0) + 1);
+  let done = false;
+  return () => {
+    if (done) return;
+    done = true;
+    const n = (detailShown.get(id) ?? 1) - 1;
+    if (n > 0) detailShown.set(id, n);
+    else detailShown.delete(id);
   };
 }
 

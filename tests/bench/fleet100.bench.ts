@@ -3,7 +3,7 @@
  * gateway's simulators at their native rates through the production server, the fleet page open
  * in Chromium (1440x900).
  *
- * - Data to DOM: each tile carries `data-updated-at`, the page-clock time its machine's data
+ * - Data to DOM: each data age (tile and machine page) carries `data-updated-at`, the page-clock time its machine's data
  *   arrived (the session's `updatedAt`); a MutationObserver in the page notes, when the attribute
  *   changes, how long ago that was. p50/p95/max over the window; target p95 ≤ 50 ms. The gateway's
  *   own added latency (controller to page) is measured by gateway.bench.ts.

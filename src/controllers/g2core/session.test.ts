@@ -25,10 +25,10 @@ afterEach(() => {
   vi.useRealTimers();
 });
 
-function makeSession() {
+function makeSession(detail: () => boolean = () => true) {
   const ctx = createContext(
     { id: 'cnc', name: 'CNC', kind: 'g2core', simulated: true },
-    { visibility: alwaysVisible, principal: () => ({ name: 'tester', role }) },
+    { visibility: alwaysVisible, principal: () => ({ name: 'tester', role }), detail },
   );
   const s = new G2coreSession(ctx);
   s.start();
@@ -69,6 +69,29 @@ describe('G2coreSession through msw', () => {
       unknown
     >;
     expect(filter).toMatchObject({ stat: 1, posx: 0 });
+    s.stop();
+  });
+
+  it('reads status 4 times a second for its machine page, once a second for a fleet tile alone', async () => {
+    let reads = 0;
+    const inner = sim.fetch.bind(sim);
+    sim.fetch = (req, path) => {
+      if (path.startsWith('/status_report')) reads++;
+      return inner(req, path);
+    };
+    let pageOpen = false;
+    const s = makeSession(() => pageOpen);
+    await settle(1000);
+    reads = 0;
+    await settle(10_000);
+    expect(reads).toBeGreaterThanOrEqual(9);
+    expect(reads).toBeLessThanOrEqual(11);
+    pageOpen = true;
+    await settle(1000);
+    reads = 0;
+    await settle(10_000);
+    expect(reads).toBeGreaterThanOrEqual(38);
+    expect(s.ctx.snapshot.getState().link).toBe('online');
     s.stop();
   });
 

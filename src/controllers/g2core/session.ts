@@ -49,6 +49,9 @@ export {
 export const SR_POLL_MS = 250;
 /** Job list and tracked operations about once a second, and at once when `stat` changes. */
 export const SLOW_POLL_MS = 1000;
+/** The same two reads when only a fleet tile shows the machine (no machine page open). */
+export const TILE_POLL_MS = 1000;
+export const TILE_SLOW_POLL_MS = 2000;
 /** A full (unfiltered) status report now and then, in case a changed-only answer was lost. */
 const FULL_EVERY = 40;
 /**
@@ -117,7 +120,8 @@ export class G2coreSession extends KernelSession implements CommandHost {
     name: 'status',
     read: (signal) => this.readStatus(signal),
     apply: (r) => this.applyStatus(r),
-    intervalMs: () => SR_POLL_MS,
+    // 4 Hz for the machine page (positions); once a second for a fleet tile.
+    intervalMs: () => (this.ctx.detail() ? SR_POLL_MS : TILE_POLL_MS),
     failed: (e) => this.statusFailed(e),
   });
 
@@ -128,7 +132,7 @@ export class G2coreSession extends KernelSession implements CommandHost {
       this.ops.apply(r);
       if (this.tracker.state === 'online') this.publish();
     },
-    intervalMs: () => SLOW_POLL_MS,
+    intervalMs: () => (this.ctx.detail() ? SLOW_POLL_MS : TILE_SLOW_POLL_MS),
     // The first status report kicks it (its stat is new).
     firstDelayMs: SLOW_POLL_MS,
     when: () => this.tracker.state === 'online',
