@@ -1,7 +1,7 @@
-import { useEffect, useState } from 'react';
+import { useEffect, useMemo } from 'react';
 import { useStore } from 'zustand';
 import { allRuntimes, fleetStore } from '../fleet/fleet';
-import { useCan } from '../fleet/react';
+import { useCan, useDerived } from '../fleet/react';
 import type { Alarm } from '../fleet/types';
 import { Button, Dialog, formatTime } from '../ui';
 
@@ -56,18 +56,14 @@ function useAlarmSound(active: boolean): void {
 /** The unacknowledged blocking alarms of every machine (the App makes the page inert while any). */
 export function useBlockingAlarms(): Blocking[] {
   const machines = useStore(fleetStore, (s) => s.machines);
-  const [blocking, setBlocking] = useState<Blocking[]>([]);
-  useEffect(() => {
-    const update = () => {
-      const next = collect();
-      setBlocking((prev) =>
-        prev.length === next.length && prev.every((p, i) => p.alarm === next[i]?.alarm) ? prev : next,
-      );
-    };
-    update();
-    const unsubs = allRuntimes().map((rt) => rt.snapshot.subscribe(update));
-    return () => unsubs.forEach((u) => u());
-  }, [machines]);
+  // Every runtime's snapshot (the list changes with the fleet).
+  // eslint-disable-next-line react-hooks/exhaustive-deps
+  const sources = useMemo(() => allRuntimes().map((rt) => rt.snapshot), [machines]);
+  const blocking = useDerived(
+    sources,
+    collect,
+    (a, b) => a.length === b.length && a.every((p, i) => p.alarm === b[i]?.alarm),
+  );
   return blocking;
 }
 

@@ -3,7 +3,7 @@ import { FAMILY_LABELS, useController } from '../controllers';
 import { getRuntime, fleetStore, type MachineRuntime } from '../fleet/fleet';
 import { preloadViews } from '../fleet/lazy';
 import { linkWords } from '../fleet/contract';
-import { useSnapshot } from '../fleet/react';
+import { useDerived, useSnapshot } from '../fleet/react';
 import { mostSevereAlarm, type Activity, type MachineInfo } from '../fleet/types';
 import { Badge, EmptyState, Notice, ProgressBar, formatDuration, formatPercent } from '../ui';
 import { MachineAge } from './Age';
@@ -11,7 +11,7 @@ import { ErrorBoundary } from './ErrorBoundary';
 import { MachinePage } from './pages';
 import { Link } from './router';
 import { ACTIVITY_TONE, ACTIVITY_WORDS, LINK_TONE } from './status';
-import { useEffect, useId, useState } from 'react';
+import { useId, useMemo } from 'react';
 
 export function FleetPage() {
   const { machines, status, error } = useStore(fleetStore);
@@ -62,22 +62,24 @@ const SUMMARY: Array<{
 
 /** Counts by activity. Subscribes to each machine's snapshot for two fields only. */
 function SummaryBar({ machines }: { machines: MachineInfo[] }) {
-  const [counts, setCounts] = useState<Record<string, number>>({});
-  useEffect(() => {
-    const rts = machines.map((m) => getRuntime(m.id)).filter((r): r is MachineRuntime => Boolean(r));
-    const compute = () => {
+  const rts = useMemo(
+    () => machines.map((m) => getRuntime(m.id)).filter((r): r is MachineRuntime => Boolean(r)),
+    [machines],
+  );
+  const sources = useMemo(() => rts.map((rt) => rt.snapshot), [rts]);
+  const counts = useDerived(
+    sources,
+    () => {
       const c: Record<string, number> = {};
       for (const rt of rts) {
         const s = rt.snapshot.getState();
         const alarm = s.alarms.some((a) => a.severity === 'critical' && !a.acknowledged);
         for (const def of SUMMARY) if (def.match(s.activity, alarm)) c[def.key] = (c[def.key] ?? 0) + 1;
       }
-      setCounts((prev) => (SUMMARY.every((d) => prev[d.key] === c[d.key]) ? prev : c));
-    };
-    compute();
-    const unsubs = rts.map((rt) => rt.snapshot.subscribe(compute));
-    return () => unsubs.forEach((u) => u());
-  }, [machines]);
+      return c;
+    },
+    (a, b) => SUMMARY.every((d) => a[d.key] === b[d.key]),
+  );
   return (
     <div className="summary" data-testid="fleet-summary" aria-label="Fleet summary">
       <span className="summary-total">{machines.length} machines</span>

@@ -5,7 +5,8 @@ import { DEADLINE_GRACE_MS, type CommandDecl } from './commands';
 import { LinkError } from './errors';
 import { createContext } from './fleet';
 import { alwaysVisible } from './link';
-import { CommandButton, useNow } from './react';
+import { createStore } from 'zustand/vanilla';
+import { CommandButton, derivedStore, useNow } from './react';
 
 afterEach(cleanup);
 
@@ -169,5 +170,26 @@ describe('useNow', () => {
       hidden.mockRestore();
       vi.useRealTimers();
     }
+  });
+});
+
+describe('derivedStore', () => {
+  it('tells React only when the derived value changes, however often its sources do', () => {
+    const a = createStore(() => ({ activity: 'idle', n: 0 }));
+    const b = createStore(() => ({ activity: 'idle', n: 0 }));
+    const running = () => [a, b].filter((s) => s.getState().activity === 'running').length;
+    const store = derivedStore([a, b], running, (x, y) => x === y);
+    const notify = vi.fn();
+    const stop = store.subscribe(notify);
+    // 1000 answers that change numbers but not the count: React hears nothing.
+    for (let i = 0; i < 1000; i++) a.setState({ n: i });
+    expect(notify).not.toHaveBeenCalled();
+    expect(store.getSnapshot()).toBe(0);
+    b.setState({ activity: 'running' });
+    expect(notify).toHaveBeenCalledTimes(1);
+    expect(store.getSnapshot()).toBe(1);
+    stop();
+    a.setState({ activity: 'running' });
+    expect(notify).toHaveBeenCalledTimes(1);
   });
 });
