@@ -11,6 +11,9 @@ import { createSimApi, SIM_API_PATH } from './sim-api';
 import { PIN_RULE, checkSecret } from './users';
 import type { GatewayContext, Principal, Who } from './context';
 import { envNumber } from './context';
+import { type AlarmCentre, createAlarmStores, webhookPayload } from './alarms';
+import type { SettingsStore } from './settings';
+import type { Webhook } from './webhook';
 
 const loginSchema = z.object({ name: z.string().min(1).max(64), password: z.string().min(1).max(1024) });
 const elevateSchema = z.object({ name: z.string().min(1).max(64), pin: z.string().min(1).max(64) });
@@ -19,7 +22,27 @@ function tooMany(res: ServerResponse, error: string, retryAfterS: number): void 
   sendJson(res, 429, { error, retryAfterS }, { 'Retry-After': String(retryAfterS) });
 }
 
-export function createApi(ctx: GatewayContext) {
+const ackSchema = z.union([
+  z.object({ id: z.string().min(1).max(40) }).strict(),
+  z.object({ machine: z.string().min(1).max(100), key: z.string().min(1).max(200) }).strict(),
+]);
+const settingsSchema = z.object({ alarmWebhook: z.string().trim().max(2000).nullable() }).strict();
+const ALARM_STATES = ['active', 'unacknowledged', 'cleared', 'all'] as const;
+const SEVERITIES = ['critical', 'warning', 'info'] as const;
+
+function oneOf<T extends string>(values: readonly T[], v: string | null): T | undefined {
+  return values.find((x) => x === v);
+}
+
+/** The gateway's own stores the API answers from besides the context (gateway.ts makes them). */
+export interface ApiStores {
+  alarms: AlarmCentre;
+  settings: SettingsStore;
+  webhook: Webhook;
+}
+
+export function createApi(ctx: GatewayContext, stores: ApiStores = createAlarmStores(ctx)) {
+  const { alarms, settings, webhook } = stores;
   const {
     revalidateSockets,
     opts,
@@ -354,6 +377,138 @@ export function createApi(ctx: GatewayContext) {
           listenMs: d.listenMs ?? 2000,
           bindAddress: d.bindAddress,
         });
+        sendJson(res, 200, result);
+        return;
+      }
+      case 'GET /api/alarms': {
+        const w = who(req, false);
+        if (!w.principal) {
+          needLogin(res, w);
+          return;
+        }
+        const p = url.searchParams;
+        // A page that already has this version is told so, not sent the list again.
+        if (p.get('since') === String(alarms.version)) {
+          sendJson(res, 200, { version: alarms.version, unchanged: true });
+          return;
+        }
+        const limit = Number(p.get('limit'));
+        const list = alarms.query({
+          machines: w.principal.machines,
+          machine: p.get('machine') || undefined,
+          family: p.get('family') || undefined,
+          severity: oneOf(SEVERITIES, p.get('severity')),
+          state: oneOf(ALARM_STATES, p.get('state')),
+          limit: Number.isInteger(limit) && limit > 0 ? Math.min(limit, 2000) : 500,
+        });
+        sendJson(res, 200, { version: alarms.version, alarms: list });
+        return;
+      }
+      case 'POST /api/alarms/ack': {
+        const w = who(req, true);
+        if (!w.principal) {
+          needLogin(res, w);
+          return;
+        }
+        const pr = w.principal;
+        const body = ackSchema.safeParse(await readJson(req));
+        if (!body.success) {
+          sendJson(res, 400, { error: 'send {"id": …} or {"machine": …, "key": …}' });
+          return;
+        }
+        const b = body.data;
+        const target = 'id' in b ? alarms.get(b.id) : undefined;
+        const machineId = 'id' in b ? target?.machine : b.machine;
+        if (!machineId || !mayUseMachine(pr, machineId) || ('machine' in b && !byId.has(b.machine))) {
+          sendJson(res, 404, { error: 'no such alarm' });
+          return;
+        }
+        if (!roleAtLeast(pr.role, 'operator')) {
+          record({
+            type: 'refused',
+            result: 'refused',
+            user: pr.name,
+            source: 'gateway',
+            machine: machineId,
+            label: 'acknowledge alarm',
+            role: 'operator',
+            address,
+            error: 'acknowledging an alarm needs an operator',
+          });
+          sendJson(res, 403, { error: 'acknowledging an alarm needs an operator', needs: 'operator' });
+          return;
+        }
+        const by = pr.onBehalfOf ? `${pr.name} (on ${pr.onBehalfOf}'s tablet)` : pr.name;
+        const out = 'id' in b ? alarms.acknowledge(b.id, by) : alarms.acknowledgeKey(b.machine, b.key, by);
+        if (out === 'already') {
+          sendJson(res, 200, { alarm: target, already: true });
+          return;
+        }
+        const r = out === 'early' || out === null ? null : out;
+        record({
+          type: 'alarm-ack',
+          result: 'ok',
+          user: pr.name,
+          onBehalfOf: pr.onBehalfOf,
+          source: 'gateway',
+          machine: machineId,
+          address,
+          detail: `acknowledged: ${r ? r.text : 'key' in b ? b.key : ''}`.slice(0, 500),
+        });
+        sendJson(res, 200, { alarm: r, early: out === 'early' });
+        return;
+      }
+      case 'GET /api/settings': {
+        if (!supervisorOnly(req, res, 'the server settings are for supervisors')) return;
+        sendJson(res, 200, { ...settings.view(), webhook: { ...webhook.stats, waiting: webhook.waiting } });
+        return;
+      }
+      case 'PUT /api/settings': {
+        const p = supervisorOnly(req, res, 'the server settings are for supervisors');
+        if (!p) return;
+        const body = settingsSchema.safeParse(await readJson(req));
+        if (!body.success) {
+          sendJson(res, 400, { error: 'send {"alarmWebhook": "https://…" or null}' });
+          return;
+        }
+        const url = body.data.alarmWebhook || null;
+        const problem = settings.setWebhook(url);
+        if (problem) {
+          sendJson(res, 400, { error: problem });
+          return;
+        }
+        const view = settings.view();
+        record({
+          type: 'settings',
+          result: 'ok',
+          user: p.name,
+          onBehalfOf: p.onBehalfOf,
+          source: 'gateway',
+          address,
+          detail: url ? `alarm webhook set to ${view.alarmWebhook.shown ?? ''}` : 'alarm webhook removed',
+        });
+        sendJson(res, 200, view);
+        return;
+      }
+      case 'POST /api/settings/test-webhook': {
+        const p = supervisorOnly(req, res, 'the server settings are for supervisors');
+        if (!p) return;
+        const t = now();
+        const result = await webhook.tryOnce(
+          webhookPayload('test', {
+            id: 'test',
+            machine: 'test',
+            machineName: 'Shopdeck',
+            family: 'test',
+            key: 'test',
+            severity: 'info',
+            text: `a test sent by ${p.name} from the console's settings`,
+            since: t,
+            clearedAt: null,
+            ackBy: null,
+            ackAt: null,
+          }),
+        );
         sendJson(res, 200, result);
         return;
       }

@@ -41,7 +41,11 @@ export type AuditType =
   | 'tls-trust'
   | 'tls-forget'
   /** What the gateway's watch saw a machine do (watch.ts): job started/paused/ended, alarms. */
-  | 'machine';
+  | 'machine'
+  /** A person acknowledged an alarm (the alarm centre, alarms.ts). */
+  | 'alarm-ack'
+  /** A supervisor changed the server settings (the alarm webhook). */
+  | 'settings';
 
 export type AuditResult = 'ok' | 'error' | 'refused' | 'failed';
 
@@ -137,6 +141,8 @@ export const DURABLE_TYPES: ReadonlySet<AuditType> = new Set<AuditType>([
   'tls-trust',
   'tls-forget',
   'machine',
+  'alarm-ack',
+  'settings',
 ]);
 
 /** An entry in memory: where it is on disk once written (`seg` null: still queued). */

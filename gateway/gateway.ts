@@ -8,7 +8,9 @@ import { BodyTooLarge, clientAddress, rejectUpgrade, sendJson } from './http-uti
 import type { MachinesConfig } from './machines';
 import { createHttpProxy, READ_METHODS } from './proxy-http';
 import { createWsProxy } from './proxy-ws';
+import { type AlarmCentre, createAlarmStores } from './alarms';
 import { MachineWatch } from './watch';
+import type { Webhook } from './webhook';
 import { endHeldSessions } from './held-session';
 import type { UserRecord } from './users';
 import type { UpstreamStats } from './upstream-http';
@@ -37,6 +39,10 @@ export interface Gateway {
   goingAway(reason: string): number;
   /** Shutdown: sockets, simulators, held sessions; starts closing the audit log (`audit.close()`). */
   close(): void;
+  /** Every alarm of every machine (alarms.ts); `alarms.close()` writes what is pending. */
+  readonly alarms: AlarmCentre;
+  /** Alarms sent on to the webhook of the server settings. */
+  readonly webhook: Webhook;
   /** Counters of a machine's HTTP upstream (upstream-http.ts): benchmark, tests. */
   upstreamStats(id: string): UpstreamStats | null;
   /** Shared controller sockets of a machine (streams.ts): browser sockets joined, hubs open. */
@@ -73,7 +79,10 @@ export function createGateway(opts: GatewayOptions): Gateway {
       }, 1500)
     : null;
   demoJobs?.unref();
-  const api = createApi(ctx);
+  // The alarm centre (alarms.ts) and the webhook that sends alarms on (settings: settings.json).
+  const stores = createAlarmStores(ctx);
+  const { alarms, webhook } = stores;
+  const api = createApi(ctx, stores);
   const { proxy, watchRead } = createHttpProxy(ctx);
   const { upgradeMachine, holdStream } = createWsProxy(ctx);
 
@@ -87,6 +96,12 @@ export function createGateway(opts: GatewayOptions): Gateway {
       const w = new MachineWatch(m.id, decl, {
         read: (pathAndQuery) => watchRead(m, pathAndQuery),
         hold: (path, onFrame, onEnd) => holdStream(m, path, onFrame, onEnd),
+        // Alarm words may echo a machine's secret: scrubbed before the list, the page, the webhook.
+        observe: (prev, next) =>
+          alarms.observe(m, prev, {
+            ...next,
+            ...(next.alarms ? { alarms: next.alarms.map((a) => ({ ...a, text: scrub(a.text) })) } : {}),
+          }),
         report: (e) => {
           const line = `${m.id}: ${e.what}${e.detail ? ` (${e.detail})` : ''}`;
           if (e.what === 'alarm') ctx.log.warn(line, { machine: m.id, event: e.what });
@@ -190,6 +205,10 @@ export function createGateway(opts: GatewayOptions): Gateway {
     if (demoJobs) clearTimeout(demoJobs);
     ctx.refusals.dispose();
     for (const w of watches) w.stop();
+    webhook.close();
+    alarms.close().catch((e: unknown) => {
+      ctx.log.error('could not write the alarm list at shutdown', { error: String(e) });
+    });
     endHeldSessions(ctx); // held controller sessions end first (held-session.ts), sims still there
     ctx.streams.closeAll(1001, 'the console is stopping'); // shared controller sockets (streams.ts)
     for (const s of openSockets) s.terminate();
@@ -225,6 +244,8 @@ export function createGateway(opts: GatewayOptions): Gateway {
     upgrade,
     goingAway,
     close,
+    alarms,
+    webhook,
     upstreamStats: ctx.upstreamStats,
     streamStats: (id: string) => ctx.streams.stats(id),
   };

@@ -746,7 +746,10 @@ export function createHttpProxy(ctx: GatewayContext) {
    * and no role check, hence only what the family classifies as a read. It takes the browsers'
    * way (held session, secrets, sharing: within a window it costs the controller nothing).
    */
-  async function watchRead(m: MachineEntry, pathAndQuery: string): Promise<{ status: number; body: string }> {
+  async function watchRead(
+    m: MachineEntry,
+    pathAndQuery: string,
+  ): Promise<{ status: number; body: string; gateway: boolean }> {
     const t = splitTarget(pathAndQuery);
     if ('error' in t) throw new Error(t.error);
     const decision = classify(m, { method: 'GET', path: t.path, query: t.query });
@@ -758,7 +761,9 @@ export function createHttpProxy(ctx: GatewayContext) {
     const { res, answer } = captureAnswer(WATCH_READ_MAX);
     await sendUpstream(req, res, m, 'GET', t, {}, null, false, () => undefined);
     const a = await answer;
-    return { status: a.status, body: a.body.toString('utf8') };
+    // `X-Shopdeck-Gateway` is the gateway's own (a controller's is never passed on): unreachable.
+    const gateway = a.headers['x-shopdeck-gateway'] !== undefined;
+    return { status: a.status, body: a.body.toString('utf8'), gateway };
   }
 
   return { proxy, watchRead };

@@ -150,6 +150,7 @@ export async function startGateway(opts: GatewayOptions): Promise<Running> {
       gw.close();
       // As the server does at shutdown: what is queued reaches the file before the folder goes.
       await gw.audit.close().catch(() => undefined);
+      await gw.alarms.close();
       server.closeAllConnections();
       await new Promise<void>((r) => server.close(() => r()));
     },

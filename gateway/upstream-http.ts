@@ -346,16 +346,16 @@ function asResponse(c: Capture): ServerResponse {
  */
 export function captureAnswer(cap: number): {
   res: ServerResponse;
-  answer: Promise<{ status: number; body: Buffer }>;
+  answer: Promise<{ status: number; headers: Answer['headers']; body: Buffer }>;
 } {
-  let resolve: (a: { status: number; body: Buffer }) => void = noop;
+  let resolve: (a: { status: number; headers: Answer['headers']; body: Buffer }) => void = noop;
   let reject: (e: Error) => void = noop;
-  const answer = new Promise<{ status: number; body: Buffer }>((ok, fail) => {
+  const answer = new Promise<{ status: number; headers: Answer['headers']; body: Buffer }>((ok, fail) => {
     resolve = ok;
     reject = fail;
   });
   const c = new Capture(cap, {
-    complete: (a) => resolve({ status: a.status, body: a.body }),
+    complete: (a) => resolve({ status: a.status, headers: a.headers, body: a.body }),
     overflow: (_h, _b, cb) => {
       reject(new Error(`the answer is larger than ${cap} bytes`));
       cb(new Error('too large'));

@@ -4,7 +4,9 @@ import { afterEach, describe, expect, it } from 'vitest';
 import { xtoolFamily } from '../src/controllers/xtool/family';
 import type { FamilyDescriptor } from '../src/fleet/contract';
 import type { Simulator, SimControl } from '../src/fleet/sim';
-import { startGateway, tempDir } from './test-util';
+import http from 'node:http';
+import type { AddressInfo } from 'node:net';
+import { consoleFetch, login, startGateway, tempDir, user, writeJson } from './test-util';
 
 /**
  * The gateway watches a machine nobody looks at (watch.ts through the real gateway): a simulated
@@ -81,5 +83,207 @@ describe('the gateway’s watch, with no viewer', () => {
     expect(seen.find((e) => e.label === 'alarm')?.detail).toMatch(/flame/i);
     // Nobody opened a browser socket: the one upstream socket is the watch's.
     expect(gw.gw.streamStats('x1').joined).toBe(0);
+  });
+});
+
+/** A webhook receiver on localhost that records what it is sent. */
+async function receiver(): Promise<{ url: string; got: unknown[]; close(): Promise<void> }> {
+  const got: unknown[] = [];
+  const server = http.createServer((req, res) => {
+    let text = '';
+    req.on('data', (c: Buffer) => (text += c.toString()));
+    req.on('end', () => {
+      got.push(JSON.parse(text));
+      res.writeHead(204);
+      res.end();
+    });
+  });
+  await new Promise<void>((r) => server.listen(0, '127.0.0.1', () => r()));
+  return {
+    url: `http://127.0.0.1:${(server.address() as AddressInfo).port}/hook/secret-token`,
+    got,
+    close: () =>
+      new Promise<void>((r) => {
+        server.closeAllConnections();
+        server.close(() => r());
+      }),
+  };
+}
+
+describe('the alarm centre, with no page open', () => {
+  async function setup() {
+    const sims = new Map<string, Simulator>();
+    const sharing = xtoolFamily.gateway?.sharing;
+    const watch = sharing?.watch;
+    if (!sharing || !watch) throw new Error('the xTool family declares no watch');
+    const family: FamilyDescriptor = {
+      ...xtoolFamily,
+      gateway: { ...xtoolFamily.gateway, sharing: { ...sharing, watch: { ...watch, everyMs: 150 } } },
+      createSimulator: (o) => {
+        const sim = xtoolFamily.createSimulator(o);
+        sims.set(o.id, sim);
+        return sim;
+      },
+    };
+    const t = tempDir();
+    cleanups.push(t.cleanup);
+    const hook = await receiver();
+    cleanups.push(hook.close);
+    const usersFile = path.join(t.dir, 'users.json');
+    writeJson(usersFile, {
+      users: [
+        user('vera', 'viewer', 'vera-pass-1'),
+        user('otto', 'operator', 'otto-pass-1'),
+        user('sam', 'supervisor', 'sam-pass-1'),
+        user('lena', 'operator', 'lena-pass-1', { machines: ['other'] }),
+      ],
+    });
+    const entry = {
+      name: 'Laser',
+      kind: 'xtool' as const,
+      simulated: true,
+      url: null,
+      wsUrl: null,
+      secrets: {},
+    };
+    const gw = await startGateway({
+      machines: {
+        file: null,
+        machines: [
+          { id: 'x1', ...entry },
+          { id: 'other', ...entry, name: 'Other' },
+        ],
+      },
+      families: { xtool: family },
+      dataDir: t.dir,
+      usersFile,
+      env: { SHOPDECK_ALARM_WEBHOOK: hook.url },
+      watch: true,
+    });
+    cleanups.push(gw.close);
+    await until('the watch holds the laser’s socket', () => gw.gw.streamStats('x1').open === 1);
+    const flame = (): void => {
+      const c = sims
+        .get('x1')
+        ?.controls?.()
+        .find((x) => x.id === 'flame');
+      if (!c) throw new Error('no flame control');
+      c.run();
+    };
+    return { gw, hook, flame, dir: t.dir };
+  }
+
+  interface Listed {
+    version: number;
+    alarms: Array<{ id: string; key: string; severity: string; ackBy: string | null; machine: string }>;
+  }
+  const list = async (base: string, cookie: string, query = ''): Promise<Listed> => {
+    const r = await consoleFetch(`${base}/api/alarms${query}`, { headers: { cookie } });
+    expect(r.status).toBe(200);
+    return (await r.json()) as Listed;
+  };
+  const ack = (base: string, cookie: string, body: unknown, headers: Record<string, string> = {}) =>
+    consoleFetch(`${base}/api/alarms/ack`, {
+      method: 'POST',
+      headers: { cookie, 'Content-Type': 'application/json', ...headers },
+      body: JSON.stringify(body),
+    });
+
+  it('a flame is in the list and sent to the webhook; an operator acknowledges it, recorded', async () => {
+    const { gw, hook, flame } = await setup();
+    const vera = await login(gw.url, 'vera', 'vera-pass-1');
+    const otto = await login(gw.url, 'otto', 'otto-pass-1');
+    flame();
+    let listed: Listed = { version: 0, alarms: [] };
+    await until('the flame in the alarm list', async () => {
+      listed = await list(gw.url, vera);
+      return listed.alarms.some((a) => a.key === 'xtool-flame');
+    });
+    const rec = listed.alarms.find((a) => a.key === 'xtool-flame');
+    expect(rec).toMatchObject({ machine: 'x1', severity: 'critical', ackBy: null });
+    // Nothing new: the page is told so, not sent the list again (the watch may change it between
+    // the two requests: then the answer is the new list).
+    await until('an unchanged answer', async () => {
+      const v = (await list(gw.url, vera)).version;
+      const same = await consoleFetch(`${gw.url}/api/alarms?since=${v}`, { headers: { cookie: vera } });
+      const body = (await same.json()) as { version: number; unchanged?: boolean; alarms?: unknown[] };
+      if (body.version !== v) return false;
+      expect(body).toEqual({ version: v, unchanged: true });
+      return true;
+    });
+    await until('the webhook received it', () => hook.got.length > 0);
+    expect(hook.got[0]).toMatchObject({
+      source: 'shopdeck',
+      event: 'alarm.raised',
+      alarm: { machine: 'x1', key: 'xtool-flame', severity: 'critical' },
+    });
+    expect(String((hook.got[0] as { text: string }).text)).toMatch(/^Alarm: Laser: critical — FLAME/);
+
+    // A viewer may see it, not acknowledge it: refused and recorded.
+    const refused = await ack(gw.url, vera, { id: rec?.id });
+    expect(refused.status).toBe(403);
+    const ok = await ack(gw.url, otto, { id: rec?.id });
+    expect(ok.status).toBe(200);
+    const after = await list(gw.url, vera);
+    expect(after.alarms.find((a) => a.id === rec?.id)?.ackBy).toBe('otto');
+    await gw.gw.audit.flush();
+    const audit = gw.gw.audit.all();
+    expect(audit.find((e) => e.type === 'alarm-ack')).toMatchObject({ user: 'otto', machine: 'x1' });
+    expect(audit.find((e) => e.type === 'refused' && e.label === 'acknowledge alarm')).toMatchObject({
+      user: 'vera',
+    });
+    await until('the acknowledgement sent on', () =>
+      hook.got.some((g) => (g as { event: string }).event === 'alarm.acknowledged'),
+    );
+  });
+
+  it('refuses a forged acknowledgement: another site, no login, a machine the user may not use', async () => {
+    const { gw, flame } = await setup();
+    const otto = await login(gw.url, 'otto', 'otto-pass-1');
+    const lena = await login(gw.url, 'lena', 'lena-pass-1');
+    flame();
+    let id = '';
+    await until('the flame in the alarm list', async () => {
+      id = (await list(gw.url, otto)).alarms[0]?.id ?? '';
+      return id !== '';
+    });
+    // Another web site's form or fetch with the operator's cookie.
+    const cross = await fetch(`${gw.url}/api/alarms/ack`, {
+      method: 'POST',
+      headers: { cookie: otto, 'Content-Type': 'text/plain', Origin: 'https://evil.example' },
+      body: JSON.stringify({ id }),
+    });
+    expect(cross.status).toBe(403);
+    expect((await ack(gw.url, '', { id })).status).toBe(401);
+    // An operator of another machine sees nothing of this one and cannot acknowledge it.
+    expect((await list(gw.url, lena)).alarms.filter((a) => a.machine === 'x1')).toEqual([]);
+    expect((await ack(gw.url, lena, { id })).status).toBe(404);
+    expect((await ack(gw.url, lena, { machine: 'x1', key: 'xtool-flame' })).status).toBe(404);
+    expect((await ack(gw.url, otto, { id, extra: 1 })).status).toBe(400);
+    const still = (await list(gw.url, otto)).alarms.find((a) => a.id === id);
+    expect(still?.ackBy).toBeNull();
+  });
+
+  it('the webhook URL is a supervisor’s setting; its secret part is never shown', async () => {
+    const { gw } = await setup();
+    const sam = await login(gw.url, 'sam', 'sam-pass-1');
+    const otto = await login(gw.url, 'otto', 'otto-pass-1');
+    expect((await consoleFetch(`${gw.url}/api/settings`, { headers: { cookie: otto } })).status).toBe(403);
+    const r = await consoleFetch(`${gw.url}/api/settings`, { headers: { cookie: sam } });
+    const text = await r.text();
+    expect(text).not.toMatch(/secret-token/);
+    expect(JSON.parse(text)).toMatchObject({ alarmWebhook: { set: true, fromEnvironment: true } });
+    // Set by the environment: not changed from the page.
+    const put = await consoleFetch(`${gw.url}/api/settings`, {
+      method: 'PUT',
+      headers: { cookie: sam, 'Content-Type': 'application/json' },
+      body: JSON.stringify({ alarmWebhook: 'https://hooks.example.com/x' }),
+    });
+    expect(put.status).toBe(400);
+    const test = await consoleFetch(`${gw.url}/api/settings/test-webhook`, {
+      method: 'POST',
+      headers: { cookie: sam },
+    });
+    expect(await test.json()).toMatchObject({ ok: true, status: 204 });
   });
 });

@@ -154,4 +154,86 @@ describe('MachineWatch', () => {
     w.stop();
     expect(holds[1]?.released).toBe(true);
   });
+
+  it('calls a machine offline after two failed reads in a row (during a job: an event of its own)', async () => {
+    const answers: Array<{ status: number; body: string; gateway?: boolean } | Error> = [
+      { status: 200, body: 'run' },
+      { status: 502, body: '{"error":"cannot reach m1","gateway":true}', gateway: true },
+      new Error('ECONNREFUSED'),
+      { status: 504, body: '{"error":"timed out","gateway":true}', gateway: true },
+      { status: 200, body: 'idle' },
+    ];
+    const events: WatchEvent[] = [];
+    const seen: Array<[string, string]> = [];
+    const w = new MachineWatch(
+      'm1',
+      {
+        everyMs: 1000,
+        poll: { path: '/s', read: (_s, body) => (body === 'run' ? S('running', 'a.nc') : S('idle')) },
+      },
+      {
+        read: () => {
+          const a = answers.shift() ?? { status: 200, body: 'idle' };
+          return a instanceof Error ? Promise.reject(a) : Promise.resolve(a);
+        },
+        report: (e) => events.push(e),
+        observe: (prev, next) => seen.push([prev.state, next.state]),
+      },
+    );
+    w.start();
+    await vi.advanceTimersByTimeAsync(1);
+    expect(w.current.state).toBe('running');
+    await vi.advanceTimersByTimeAsync(1000);
+    // One failure is not yet offline (a blip).
+    expect(w.current.state).toBe('running');
+    await vi.advanceTimersByTimeAsync(1000);
+    expect(w.current.state).toBe('offline');
+    await vi.advanceTimersByTimeAsync(2000);
+    expect(w.current.state).toBe('idle');
+    expect(events.map((e) => e.what)).toEqual(['job started', 'offline during a job']);
+    expect(seen).toEqual([
+      ['unknown', 'running'],
+      ['running', 'offline'],
+      ['offline', 'idle'],
+    ]);
+    w.stop();
+  });
+
+  it('a frame raises alarms beside those already known; the poll’s full list replaces them', async () => {
+    let onFrame: (f: string) => void = () => undefined;
+    const w = new MachineWatch(
+      'd1',
+      {
+        everyMs: 1000,
+        poll: {
+          path: '/model',
+          read: () => ({ ...S('idle'), alarms: [] }),
+        },
+        stream: {
+          path: '/machine',
+          read: (f) => ({
+            state: 'alarm',
+            raise: [{ key: f, severity: 'critical', text: `fault ${f}` }],
+          }),
+        },
+      },
+      {
+        read: () => new Promise(() => undefined), // the poll never answers in this test
+        hold: (_p, frame) => {
+          onFrame = frame;
+          return Promise.resolve(() => undefined);
+        },
+        report: () => undefined,
+      },
+    );
+    w.start();
+    await vi.advanceTimersByTimeAsync(0);
+    onFrame('heater-0-fault');
+    onFrame('heater-1-fault');
+    onFrame('heater-0-fault');
+    expect(w.current.alarms?.map((a) => a.key)).toEqual(['heater-0-fault', 'heater-1-fault']);
+    w.learn({ ...S('idle'), alarms: [] });
+    expect(w.current.alarms).toEqual([]);
+    w.stop();
+  });
 });

@@ -1,4 +1,4 @@
-import type { WatchDecl, WatchSummary } from '../src/fleet/contract';
+import type { WatchAlarm, WatchDecl, WatchNews, WatchSummary } from '../src/fleet/contract';
 
 /**
  * The gateway's own slow watch of every machine (the family's `sharing.watch`), with or without
@@ -20,7 +20,7 @@ export interface WatchEvent {
 
 export interface WatchHost {
   /** One read of the controller, as the browsers' reads go (held session, secrets, sharing). */
-  read(path: string): Promise<{ status: number; body: string }>;
+  read(path: string): Promise<{ status: number; body: string; gateway?: boolean }>;
   /**
    * Holds the shared stream at `path` open and hands its frames over; returns the release.
    * `onEnd`: the stream ended (the controller closed it); the watch opens it again later.
@@ -28,6 +28,8 @@ export interface WatchHost {
   hold?(path: string, onFrame: (frame: string) => void, onEnd: () => void): Promise<() => void>;
   /** A change worth the log and the audit log. */
   report(e: WatchEvent): void;
+  /** Every summary learnt, with the one before (the alarm centre reads alarms from it). */
+  observe?(prev: WatchSummary, next: WatchSummary): void;
   now?: () => number;
 }
 
@@ -43,7 +45,10 @@ export function describeChange(
   const named = job ? `: ${job}` : '';
   if (prev.state !== next.state && next.state !== 'unknown') {
     const was = prev.state;
-    if (next.state === 'running' && was === 'paused')
+    if (next.state === 'offline' && (was === 'running' || was === 'paused'))
+      out.push({ what: 'offline during a job', detail: `went offline while ${was}${named}` });
+    else if (next.state === 'offline') out.push({ what: 'offline', detail: 'went offline' });
+    else if (next.state === 'running' && was === 'paused')
       out.push({ what: 'job resumed', detail: `resumed${named}` });
     else if (next.state === 'running') out.push({ what: 'job started', detail: `started${named}` });
     else if (next.state === 'paused') out.push({ what: 'job paused', detail: `paused${named}` });
@@ -55,12 +60,23 @@ export function describeChange(
   return out;
 }
 
+/** Polls or stream openings that fail in a row before the watch calls the machine offline. */
+export const OFFLINE_AFTER = 2;
+
+/** `current` with the alarms a frame raised added (by key; a frame never clears one). */
+function withRaised(current: WatchAlarm[] | undefined, raised: WatchAlarm[]): WatchAlarm[] {
+  const byKey = new Map((current ?? []).map((a) => [a.key, a]));
+  for (const a of raised) byKey.set(a.key, a);
+  return [...byKey.values()];
+}
+
 export class MachineWatch {
   private summary: WatchSummary = EMPTY;
   private timer: ReturnType<typeof setTimeout> | null = null;
   private release: (() => void) | null = null;
   private stopped = false;
   private inFlight = false;
+  private failures = 0;
   /** When the last good summary came (ms). */
   lastSeen: number | null = null;
 
@@ -88,13 +104,28 @@ export class MachineWatch {
   }
 
   /** Applies what was learnt (a poll's summary, or part of one from a frame). */
-  learn(part: Partial<WatchSummary>): void {
-    const next: WatchSummary = { ...this.summary, ...part };
+  learn(news: WatchNews): void {
+    const { raise, ...part } = news;
     const prev = this.summary;
+    const next: WatchSummary = { ...prev, ...part };
+    if (raise?.length) next.alarms = withRaised(part.alarms ?? prev.alarms, raise);
     this.summary = next;
-    this.lastSeen = (this.host.now ?? Date.now)();
+    if (next.state !== 'offline') {
+      this.failures = 0;
+      this.lastSeen = (this.host.now ?? Date.now)();
+    }
     for (const c of describeChange(prev, next))
       this.host.report({ machine: this.machine, what: c.what, detail: c.detail, summary: next });
+    this.host.observe?.(prev, next);
+  }
+
+  /**
+   * The machine did not answer (a poll the gateway could not deliver, a stream that could not be
+   * opened): after `OFFLINE_AFTER` in a row it is offline. Its alarms are kept as last known.
+   */
+  private unreachable(): void {
+    this.failures++;
+    if (this.failures >= OFFLINE_AFTER && this.summary.state !== 'offline') this.learn({ state: 'offline' });
   }
 
   private schedule(ms: number): void {
@@ -112,10 +143,16 @@ export class MachineWatch {
     try {
       const a = await this.host.read(p.path);
       if (this.stopped) return;
+      // The gateway's own failure (unreachable, timed out): not the controller's answer.
+      if (a.gateway) {
+        this.unreachable();
+        return;
+      }
       const s = p.read(a.status, a.body);
       if (!(s instanceof Error)) this.learn(s);
     } catch {
-      // Unreachable: the gateway's reachability log says so; the summary stays as last known.
+      // The read could not be made: the gateway's reachability log says why.
+      if (!this.stopped) this.unreachable();
     } finally {
       this.inFlight = false;
     }
@@ -139,7 +176,9 @@ export class MachineWatch {
       if (this.stopped) release();
       else this.release = release;
     } catch {
-      this.retryStream(); // could not open it now
+      // Could not open it now. Without a poll, that is how the watch learns the machine is gone.
+      if (!this.decl.poll && !this.stopped) this.unreachable();
+      this.retryStream();
     }
   }
 

@@ -613,7 +613,10 @@ export function createShopdeckServer(opts: ShopdeckServerOptions): ShopdeckServe
     gw.close();
     try {
       // Everything queued is written and fsynced (audit.ts writes asynchronously).
-      await Promise.race([gw.audit.close(), delay(Math.max(0, deadline - 500 - Date.now()))]);
+      await Promise.race([
+        Promise.all([gw.audit.close(), gw.alarms.close()]),
+        delay(Math.max(0, deadline - 500 - Date.now())),
+      ]);
     } catch (e) {
       log.error('cannot write the audit log to disk', { file: gw.audit.file, error: String(e) });
     }

@@ -7,7 +7,16 @@ import { backoffDelay, type Visibility } from './link';
 import type { MachineQueries } from './kernel/query';
 import type { MachineLog } from './log';
 import type { SimulatorFactory } from './sim';
-import type { Activity, LinkState, MachineInfo, MachineKind, MachineSnapshot, Role } from './types';
+import type {
+  Activity,
+  Alarm,
+  AlarmSeverity,
+  LinkState,
+  MachineInfo,
+  MachineKind,
+  MachineSnapshot,
+  Role,
+} from './types';
 
 /**
  * The controller contract: what a family module provides. A family lives in one folder under
@@ -161,14 +170,35 @@ export interface ModelStreamDecl extends StreamDeclBase {
 
 export type SharedStreamDecl = FanoutStreamDecl | ModelStreamDecl;
 
+/** One alarm or message as the watch sees it (the alarm centre's record is made of these). */
+export interface WatchAlarm {
+  /** Stable per condition within a machine: the id of the console's own alarm (`xtool-flame`). */
+  key: string;
+  severity: AlarmSeverity;
+  text: string;
+}
+
 /** The summary of a machine the gateway's watch keeps (state and alarms, for audit and history). */
 export interface WatchSummary {
-  /** 'running' | 'paused' | 'idle' | 'alarm' | 'offline' | 'unknown' */
-  state: 'running' | 'paused' | 'idle' | 'alarm' | 'unknown';
+  /** `offline`: the watch cannot reach the machine (set by the watch itself, never by a family). */
+  state: 'running' | 'paused' | 'idle' | 'alarm' | 'offline' | 'unknown';
   /** The alarm in words when one is active. */
   alarm: string | null;
   /** The job's file or program name when one is known. */
   job: string | null;
+  /**
+   * Every alarm and message active now, with its severity (the alarm centre). Absent: the family
+   * did not say (the alarm centre keeps what it had).
+   */
+  alarms?: WatchAlarm[];
+}
+
+/** What a frame of a watched stream says: part of a summary, and alarms it raised (a frame cannot clear). */
+export type WatchNews = Partial<WatchSummary> & { raise?: WatchAlarm[] };
+
+/** A family's own alarms (the same ids and words as on its pages) as the watch records them. */
+export function watchAlarmsOf(alarms: readonly Alarm[]): WatchAlarm[] {
+  return alarms.map((a) => ({ key: a.id, severity: a.severity, text: a.message }));
 }
 
 /** A machine's activity as the watch records it (the same reading for every family). */
@@ -199,7 +229,7 @@ export interface WatchDecl {
   /** A read (GET `path`) whose answer `read` turns into a summary. */
   poll?: { path: string; read(status: number, body: string): WatchSummary | Error };
   /** A shared stream kept open while the watch runs; `read` turns its frames into summaries (null: no news). */
-  stream?: { path: string; read(frame: string): Partial<WatchSummary> | null };
+  stream?: { path: string; read(frame: string): WatchNews | null };
 }
 
 /** An answer to a request the gateway made itself (held sessions). Header names are lower-case. */

@@ -67,7 +67,14 @@ const RESULT_TONE: Record<string, Tone> = { ok: 'ok', error: 'bad', refused: 'wa
 function what(e: AuditRow): string {
   const parts = [e.label ?? TYPE_WORDS[e.type] ?? e.type];
   if (e.commandId) parts.push(`(${e.commandId})`);
-  if (e.type === 'role-change' || e.type === 'user-added' || e.type === 'machine') parts.push(e.detail ?? '');
+  if (
+    e.type === 'role-change' ||
+    e.type === 'user-added' ||
+    e.type === 'machine' ||
+    e.type === 'alarm-ack' ||
+    e.type === 'settings'
+  )
+    parts.push(e.detail ?? '');
   return parts.filter(Boolean).join(' ');
 }
 

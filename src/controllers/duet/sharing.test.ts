@@ -189,24 +189,41 @@ describe('duet sharing: the watch', () => {
       state: 'idle',
       alarm: null,
       job: null,
+      alarms: [],
     });
     // the virgin model has a message box open: the console shows it as a warning, so does the watch
     expect(duetWatch.poll?.read(200, fixtureText('object-model/model_virgin.json'))).toEqual({
       state: 'idle',
       alarm: 'Message from the machine: title',
       job: null,
+      alarms: [
+        {
+          key: expect.stringMatching(/^messagebox-/),
+          severity: 'warning',
+          text: 'Message from the machine: title',
+        },
+      ],
     });
   });
 
   it('reads a print, a pause, a halt and a heater fault', () => {
-    expect(summaryOfModel(printing())).toEqual({ state: 'running', alarm: null, job: 'Veil_Token.gcode' });
+    expect(summaryOfModel(printing())).toEqual({
+      state: 'running',
+      alarm: null,
+      job: 'Veil_Token.gcode',
+      alarms: [],
+    });
     expect(summaryOfModel(printing('paused'))).toMatchObject({ state: 'paused' });
     expect(summaryOfModel(printing('halted'))).toMatchObject({
       state: 'alarm',
       alarm: expect.stringMatching(/halted/),
+      alarms: [{ key: 'halted', severity: 'critical', text: expect.stringMatching(/halted/) }],
     });
     const fault = applyPatch(model(), { heat: { heaters: [{}, { state: 'fault' }] } }).model;
-    expect(summaryOfModel(fault)).toMatchObject({ alarm: expect.stringMatching(/Heater fault/) });
+    expect(summaryOfModel(fault)).toMatchObject({
+      alarm: expect.stringMatching(/Heater fault/),
+      alarms: [{ key: 'heater-1-fault', severity: 'critical', text: expect.stringMatching(/Heater fault/) }],
+    });
   });
 
   it('turns failures and garbage into an Error, never a throw', () => {
@@ -225,15 +242,19 @@ describe('duet sharing: the watch', () => {
       state: 'idle',
       alarm: null,
       job: null,
+      alarms: [],
     });
     expect(readModelFrame('{"state":{"status":"processing","upTime":5}}')).toEqual({ state: 'running' });
     expect(readModelFrame('{"state":{"status":"halted"}}')).toEqual({
       state: 'alarm',
       alarm: 'Emergency stop: the machine is halted',
+      // A patch raises (it cannot clear): the same key as the page's alarm.
+      raise: [{ key: 'halted', severity: 'critical', text: 'Emergency stop: the machine is halted' }],
     });
     expect(readModelFrame('{"heat":{"heaters":[{},{"state":"fault"}]}}')).toEqual({
       state: 'alarm',
       alarm: 'Heater fault: heater 1',
+      raise: [{ key: 'heater-1-fault', severity: 'critical', text: 'Heater fault: heater 1' }],
     });
     expect(
       readModelFrame(fixtureText('patches/dsf-python/test_job_1__job-file-with-thumbnail.json')),

@@ -2,7 +2,10 @@ import {
   type ModelStreamDecl,
   type SharingHints,
   type WatchDecl,
+  type WatchAlarm,
+  type WatchNews,
   type WatchSummary,
+  watchAlarmsOf,
   watchStateOf,
 } from '../../fleet/contract';
 import { duetAccess } from './access';
@@ -140,6 +143,7 @@ export function summaryOfModel(raw: JsonObject): WatchSummary | Error {
     state: watchStateOf(activityOf(m.state.status)),
     alarm: alarms.length ? alarms.map((a) => a.message).join('; ') : null,
     job: jobSummary(m)?.name ?? null,
+    alarms: watchAlarmsOf(alarms),
   };
 }
 
@@ -153,27 +157,36 @@ function child(o: Json | undefined, key: string): Json | undefined {
  * patch shows only what changed, so it cannot tell that no other alarm is left (the watch's next
  * model read does, within `WATCH_EVERY_MS`).
  */
-function newsOfPatch(patch: JsonObject): Partial<WatchSummary> | null {
-  const out: Partial<WatchSummary> = {};
-  const alarms: string[] = [];
+function newsOfPatch(patch: JsonObject): WatchNews | null {
+  const out: WatchNews = {};
+  const alarms: WatchAlarm[] = [];
   const status = child(child(patch, 'state'), 'status');
   if (status !== undefined) {
     const s = machineStatus.safeParse(status);
     if (s.success) {
       out.state = watchStateOf(activityOf(s.data));
-      if (s.data === 'halted') alarms.push('Emergency stop: the machine is halted');
-      if (s.data === 'disconnected') alarms.push('DSF has lost the connection to the firmware board');
+      // The same keys and words as the page's alarms (snapshot.ts alarmsOf).
+      if (s.data === 'halted')
+        alarms.push({ key: 'halted', severity: 'critical', text: 'Emergency stop: the machine is halted' });
+      if (s.data === 'disconnected')
+        alarms.push({
+          key: 'disconnected',
+          severity: 'critical',
+          text: 'DSF has lost the connection to the firmware board',
+        });
     }
   }
   const heaters = child(child(patch, 'heat'), 'heaters');
   if (Array.isArray(heaters)) {
     heaters.forEach((h, i) => {
-      if (child(h, 'state') === 'fault') alarms.push(`Heater fault: heater ${i}`);
+      if (child(h, 'state') === 'fault')
+        alarms.push({ key: `heater-${i}-fault`, severity: 'critical', text: `Heater fault: heater ${i}` });
     });
   }
   if (alarms.length) {
     out.state = 'alarm';
-    out.alarm = alarms.join('; ');
+    out.alarm = alarms.map((a) => a.text).join('; ');
+    out.raise = alarms;
   }
   const fileName = child(child(child(patch, 'job'), 'file'), 'fileName');
   if (fileName === null) out.job = null;
@@ -202,7 +215,7 @@ function looksWhole(obj: JsonObject): boolean {
  * A frame of the shared `WS /machine`: a full model (a socket's first frame: everything) or a
  * patch (what it says for certain). PONG, garbage and patches without news: null. Never throws.
  */
-export function readModelFrame(frame: string): Partial<WatchSummary> | null {
+export function readModelFrame(frame: string): WatchNews | null {
   const obj = parseObject(frame, 'a frame');
   if (obj instanceof Error || nestsDeeper(obj, MAX_DEPTH)) return null;
   if (looksWhole(obj)) {

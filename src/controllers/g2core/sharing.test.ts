@@ -119,6 +119,7 @@ describe('g2core sharing: the watch', () => {
       state: 'running',
       alarm: null,
       job: null,
+      alarms: [],
     });
     const sr = srLines('sessions/g0-move-filtered-sr-101.03.jsonl');
     expect(sr.length).toBeGreaterThan(0);
@@ -132,6 +133,7 @@ describe('g2core sharing: the watch', () => {
       state: 'alarm',
       alarm: expect.stringMatching(/^ALARM/),
       job: null,
+      alarms: [{ key: 'g2core-alarm', severity: 'critical', text: expect.stringMatching(/^ALARM/) }],
     });
     expect(readStatusReport(200, '{"stat":12}')).toMatchObject({
       state: 'alarm',
@@ -140,13 +142,24 @@ describe('g2core sharing: the watch', () => {
     expect(readStatusReport(200, '{"stat":13}')).toMatchObject({
       state: 'alarm',
       alarm: expect.stringMatching(/^PANIC/),
+      alarms: [{ key: 'g2core-panic', severity: 'critical', text: expect.stringMatching(/^PANIC/) }],
     });
     expect(readStatusReport(200, '{"stat":11}')).toMatchObject({
       state: 'paused',
       alarm: expect.stringMatching(/interlock/i),
     });
-    expect(readStatusReport(200, '{"stat":6}')).toEqual({ state: 'paused', alarm: null, job: null });
-    expect(readStatusReport(200, '{"stat":"4"}')).toEqual({ state: 'idle', alarm: null, job: null });
+    expect(readStatusReport(200, '{"stat":6}')).toEqual({
+      state: 'paused',
+      alarm: null,
+      job: null,
+      alarms: [],
+    });
+    expect(readStatusReport(200, '{"stat":"4"}')).toEqual({
+      state: 'idle',
+      alarm: null,
+      job: null,
+      alarms: [],
+    });
   });
 
   it('turns error answers and garbage into an Error, never a throw', () => {

@@ -1,4 +1,10 @@
-import { type SharingHints, type WatchDecl, type WatchSummary, watchStateOf } from '../../fleet/contract';
+import {
+  type SharingHints,
+  type WatchDecl,
+  type WatchSummary,
+  watchAlarmsOf,
+  watchStateOf,
+} from '../../fleet/contract';
 import { g2coreAccess } from './access';
 import { activityOf, alarmsOf, num } from './model';
 import { errorBody, statusReportResponse } from './wire';
@@ -79,6 +85,7 @@ export function readStatusReport(status: number, body: string): WatchSummary | E
     state: watchStateOf(activityOf(stat)),
     alarm: alarms.length ? alarms.map((a) => a.message).join('; ') : null,
     job: null,
+    alarms: watchAlarmsOf(alarms),
   };
 }
 

@@ -142,12 +142,16 @@ describe('Prunt sharing: the watch', () => {
   it('reads the module API ticks: a print, then a server exception', () => {
     const ticks = MODULE.filter((l) => firstKey(l) === 'Status_Values').map(readPruntFrame);
     // Startup "Waiting", then "Done" with uploads/benchy.gcode at line 18342, then a recoverable exception
-    expect(ticks[0]).toEqual({ state: 'unknown', alarm: null, job: 'benchy.gcode' });
-    expect(ticks[1]).toEqual({ state: 'running', alarm: null, job: 'benchy.gcode' });
+    expect(ticks[0]).toEqual({ state: 'unknown', alarm: null, job: 'benchy.gcode', alarms: [] });
+    expect(ticks[1]).toEqual({ state: 'running', alarm: null, job: 'benchy.gcode', alarms: [] });
     expect(ticks[2]).toEqual({
       state: 'running',
       alarm: expect.stringMatching(/^Server exception: raised CONSTRAINT_ERROR/),
       job: 'benchy.gcode',
+      // recoverable: a warning
+      alarms: [
+        expect.objectContaining({ severity: 'warning', text: expect.stringMatching(/^Server exception/) }),
+      ],
     });
   });
 
@@ -161,6 +165,7 @@ describe('Prunt sharing: the watch', () => {
       state: 'paused',
       alarm: null,
       job: null,
+      alarms: [],
     });
     expect(
       readPruntFrame('{"Status":{"Current_File_Name":"uploads/a.gcode","Startup":"Update_Required"}}'),
@@ -168,6 +173,7 @@ describe('Prunt sharing: the watch', () => {
       state: 'alarm',
       alarm: expect.stringMatching(/^Firmware update required/),
       job: 'a.gcode',
+      alarms: [expect.objectContaining({ text: expect.stringMatching(/^Firmware update required/) })],
     });
   });
 
@@ -178,6 +184,8 @@ describe('Prunt sharing: the watch', () => {
       state: 'alarm',
       alarm: 'Server exception: raised X : boom',
       job: null,
+      // fatal: critical (the alarm centre's banner)
+      alarms: [expect.objectContaining({ severity: 'critical', text: 'Server exception: raised X : boom' })],
     });
   });
 

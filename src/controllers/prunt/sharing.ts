@@ -4,6 +4,7 @@ import {
   type SharingHints,
   type WatchDecl,
   type WatchSummary,
+  watchAlarmsOf,
   watchStateOf,
 } from '../../fleet/contract';
 import { FLEET_DIVISOR, TICK_MS } from './state';
@@ -142,6 +143,7 @@ export function readPruntFrame(frame: string): Partial<WatchSummary> | null {
     state: watchStateOf(activity),
     alarm: alarms.length ? alarms.map((a) => a.message).join('; ') : null,
     job: d.fileName ? d.fileName.replace(/^uploads\//, '') : null,
+    alarms: watchAlarmsOf(alarms),
   };
 }
 

@@ -97,7 +97,12 @@ describe('TouchCut sharing: the watch', () => {
   });
 
   it("reads the manual's example", () => {
-    expect(readTouchcutStatus(200, MANUAL_STATUS)).toEqual({ state: 'idle', alarm: null, job: null });
+    expect(readTouchcutStatus(200, MANUAL_STATUS)).toEqual({
+      state: 'idle',
+      alarm: null,
+      job: null,
+      alarms: [],
+    });
   });
 
   it('reads a cut, a pause, an e-stop and the messages', () => {
@@ -106,7 +111,7 @@ describe('TouchCut sharing: the watch', () => {
         200,
         status({ machineState: 'Cutting', programName: 'bracket.nc', programProgress: 40 }),
       ),
-    ).toEqual({ state: 'running', alarm: null, job: 'bracket.nc' });
+    ).toEqual({ state: 'running', alarm: null, job: 'bracket.nc', alarms: [] });
     expect(
       readTouchcutStatus(200, status({ machineState: 'Feed Hold', programName: 'bracket.nc' })),
     ).toMatchObject({
@@ -118,10 +123,20 @@ describe('TouchCut sharing: the watch', () => {
         200,
         status({ msgStatus: [{ key: 'torchCollision', msg: 'Torch collision detected' }] }),
       ),
-    ).toEqual({ state: 'alarm', alarm: 'Torch collision detected', job: null });
+    ).toEqual({
+      state: 'alarm',
+      alarm: 'Torch collision detected',
+      job: null,
+      alarms: [expect.objectContaining({ severity: 'critical', text: 'Torch collision detected' })],
+    });
     expect(
       readTouchcutStatus(200, status({ msgStatus: [{ key: 'consumables', msg: 'Electrode life low' }] })),
-    ).toEqual({ state: 'idle', alarm: 'Electrode life low', job: null });
+    ).toEqual({
+      state: 'idle',
+      alarm: 'Electrode life low',
+      job: null,
+      alarms: [expect.objectContaining({ severity: 'warning', text: 'Electrode life low' })],
+    });
   });
 
   it('turns failures and garbage into an Error, never a throw', () => {

@@ -1,4 +1,10 @@
-import { type SharingHints, type WatchDecl, type WatchSummary, watchStateOf } from '../../fleet/contract';
+import {
+  type SharingHints,
+  type WatchDecl,
+  type WatchSummary,
+  watchAlarmsOf,
+  watchStateOf,
+} from '../../fleet/contract';
 import { touchcutAccess, touchcutResource } from './access';
 import { activityOf, alarmsOf, hasProgram } from './normalize';
 import { errorBodySchema, statusSchema } from './wire';
@@ -94,6 +100,7 @@ export function readTouchcutStatus(status: number, body: string): WatchSummary |
     state: critical ? 'alarm' : watchStateOf(activity),
     alarm: alarm.length ? alarm.map((a) => a.message).join('; ') : null,
     job: hasProgram(s.programName) ? s.programName : null,
+    alarms: watchAlarmsOf(alarms),
   };
 }
 

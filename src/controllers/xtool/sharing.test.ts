@@ -170,6 +170,8 @@ describe('xTool sharing: the watch', () => {
       state: 'idle',
       alarm: null,
       job: null,
+      // the poll's full list: no alarm (it clears a flame the socket raised)
+      alarms: [],
     });
     expect(readWorkingSta(200, '{"result":"ok","working":"1"}')).toMatchObject({ state: 'running' });
     expect(readWorkingSta(200, '{"result":"ok","working":2}')).toMatchObject({ state: 'running' });
@@ -204,14 +206,27 @@ describe('xTool sharing: the watch', () => {
     expect(read('err:flameCheck')).toEqual({
       state: 'alarm',
       alarm: expect.stringMatching(/^FLAME DETECTED/),
+      raise: [{ key: 'xtool-flame', severity: 'critical', text: expect.stringMatching(/^FLAME DETECTED/) }],
     });
-    expect(read('err:tiltCheck')).toEqual({ state: 'alarm', alarm: expect.stringMatching(/Tilt sensor/) });
-    expect(read('err:movingCheck')).toEqual({
+    expect(read('err:tiltCheck')).toMatchObject({
+      state: 'alarm',
+      alarm: expect.stringMatching(/Tilt sensor/),
+    });
+    expect(read('err:movingCheck')).toMatchObject({
       state: 'alarm',
       alarm: expect.stringMatching(/Movement sensor/),
     });
-    expect(read('err:limitCheck')).toEqual({ state: 'alarm', alarm: expect.stringMatching(/Limit switch/) });
-    expect(read('ok:ERROR')).toEqual({ state: 'alarm', alarm: expect.stringMatching(/ok:ERROR/) });
+    expect(read('err:limitCheck')).toMatchObject({
+      state: 'alarm',
+      alarm: expect.stringMatching(/Limit switch/),
+    });
+    expect(read('ok:ERROR')).toMatchObject({ state: 'alarm', alarm: expect.stringMatching(/ok:ERROR/) });
+    // Only a flame is critical; the other sensors and ok:ERROR are warnings.
+    for (const f of ['err:tiltCheck', 'err:movingCheck', 'err:limitCheck', 'ok:ERROR'])
+      expect(
+        read(f)?.raise?.map((a) => a.severity),
+        f,
+      ).toEqual(['warning']);
     for (const f of allFrames) expect(read(f), f).not.toBeNull();
   });
 

@@ -3,7 +3,9 @@ import {
   type FrameClass,
   type SharingHints,
   type WatchDecl,
+  type WatchNews,
   type WatchSummary,
+  watchAlarmsOf,
   watchStateOf,
 } from '../../fleet/contract';
 import { xtoolAccess } from './access';
@@ -125,7 +127,7 @@ export function readWorkingSta(status: number, body: string): WatchSummary | Err
   const p = workingStaSchema.safeParse(json);
   if (!p.success) return new Error('get_working_sta: no "working" in the answer');
   const state = p.data.code === 'idle' ? 'idle' : p.data.code === 'unknown' ? 'unknown' : 'running';
-  return { state, alarm: null, job: null };
+  return { state, alarm: null, job: null, alarms: [] };
 }
 
 /**
@@ -133,12 +135,12 @@ export function readWorkingSta(status: number, body: string): WatchSummary | Err
  * `ok:ERROR` and `err:*Check`, the alarm in the console's words. A state frame leaves the alarm
  * alone (the poll clears it); unknown frames say nothing.
  */
-export function readXtoolFrame(frame: string): Partial<WatchSummary> | null {
+export function readXtoolFrame(frame: string): WatchNews | null {
   const f = parseFrameText(frame);
   if (f.kind === 'unknown') return null;
   const state = watchStateOf(toActivity(applyFrame(INITIAL_STATE, f).state));
   const alarm = alarmForFrame(f, 0);
-  return alarm ? { state, alarm: alarm.message } : { state };
+  return alarm ? { state, alarm: alarm.message, raise: watchAlarmsOf([alarm]) } : { state };
 }
 
 /**

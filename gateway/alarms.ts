@@ -1,0 +1,399 @@
+import { mkdirSync, readFileSync, renameSync, writeFileSync } from 'node:fs';
+import { rename, writeFile } from 'node:fs/promises';
+import { join } from 'node:path';
+import { z } from 'zod';
+import type { WatchAlarm, WatchSummary } from '../src/fleet/contract';
+import type { AlarmSeverity } from '../src/fleet/types';
+import type { Logger } from './log';
+import { SettingsStore } from './settings';
+import { Webhook } from './webhook';
+
+/**
+ * The alarm centre: every alarm and message of every machine, as the gateway's watch sees them
+ * (watch.ts), whether or not a page is open. A record opens when the controller raises an alarm,
+ * clears itself when the controller no longer reports it (and stays in the history), and is
+ * acknowledged by a person (who, when). A machine that goes offline during a job is an alarm of
+ * its own. Kept in `alarms.json` in the data folder (written atomically), bounded.
+ */
+
+export interface AlarmRecord {
+  id: string;
+  machine: string;
+  machineName: string;
+  family: string;
+  /** The condition (the family's alarm id, `xtool-flame`); one open record per machine and key. */
+  key: string;
+  severity: AlarmSeverity;
+  text: string;
+  since: number;
+  clearedAt: number | null;
+  ackBy: string | null;
+  ackAt: number | null;
+}
+
+export interface AlarmMachine {
+  id: string;
+  name: string;
+  kind: string;
+}
+
+export type AlarmState = 'active' | 'unacknowledged' | 'cleared' | 'all';
+
+export interface AlarmQuery {
+  /** The machines the asker may see (null: all). */
+  machines: readonly string[] | null;
+  machine?: string;
+  family?: string;
+  severity?: AlarmSeverity;
+  state?: AlarmState;
+  limit?: number;
+}
+
+export type AlarmEvent = 'alarm.raised' | 'alarm.cleared' | 'alarm.acknowledged';
+
+export interface AlarmCentreOptions {
+  /** The data folder (`alarms.json`); null keeps the list in memory only (tests). */
+  dataDir: string | null;
+  log: Logger;
+  now?: () => number;
+  /** Each change of a record (the webhook, the audit log). */
+  onChange?: (event: AlarmEvent, record: AlarmRecord) => void;
+  /** Records kept at most (default 5000; open or unacknowledged critical ones are kept first). */
+  maxRecords?: number;
+  /** Cleared records older than this are pruned (default 90 days). */
+  keepMs?: number;
+}
+
+export const OFFLINE_KEY = 'offline-during-job';
+/** An acknowledgement given before the watch saw the alarm (a page saw it first) waits this long. */
+const EARLY_ACK_MS = 60_000;
+const SEVERITY_RANK: Record<AlarmSeverity, number> = { critical: 2, warning: 1, info: 0 };
+const MAX_TEXT = 500;
+
+const recordSchema = z.object({
+  id: z.string().max(40),
+  machine: z.string().max(100),
+  machineName: z.string().max(200),
+  family: z.string().max(40),
+  key: z.string().max(200),
+  severity: z.enum(['critical', 'warning', 'info']),
+  text: z.string().max(MAX_TEXT),
+  since: z.number(),
+  clearedAt: z.number().nullable(),
+  ackBy: z.string().max(200).nullable(),
+  ackAt: z.number().nullable(),
+});
+const fileSchema = z.object({
+  version: z.literal(1),
+  seq: z.number().int().nonnegative(),
+  records: z.array(recordSchema),
+});
+
+/** Newest and most severe first: severity, then active before cleared, then newest. */
+export function compareAlarms(a: AlarmRecord, b: AlarmRecord): number {
+  return (
+    SEVERITY_RANK[b.severity] - SEVERITY_RANK[a.severity] ||
+    Number(a.clearedAt !== null) - Number(b.clearedAt !== null) ||
+    b.since - a.since
+  );
+}
+
+/** One line for the log, the webhook's `text`, a notification. */
+export function alarmLine(r: AlarmRecord): string {
+  return `${r.machineName}: ${r.severity} — ${r.text}`;
+}
+
+export class AlarmCentre {
+  private records: AlarmRecord[] = [];
+  private seq = 0;
+  /** Bumped on every change: a page that has this version has everything. */
+  version = 0;
+  private readonly file: string | null;
+  private readonly now: () => number;
+  private readonly earlyAcks = new Map<string, { by: string; at: number }>();
+  private writeTimer: ReturnType<typeof setTimeout> | null = null;
+  private writing: Promise<void> = Promise.resolve();
+
+  constructor(private readonly opts: AlarmCentreOptions) {
+    this.file = opts.dataDir ? join(opts.dataDir, 'alarms.json') : null;
+    this.now = opts.now ?? Date.now;
+    this.load();
+  }
+
+  private load(): void {
+    if (!this.file) return;
+    let text: string;
+    try {
+      text = readFileSync(this.file, 'utf8');
+    } catch {
+      return; // no file yet
+    }
+    let parsed: z.infer<typeof fileSchema> | null = null;
+    try {
+      const r = fileSchema.safeParse(JSON.parse(text));
+      if (r.success) parsed = r.data;
+    } catch {
+      parsed = null;
+    }
+    if (!parsed) {
+      // Never lose it: set aside for a person to look at, and start a new list.
+      const aside = `${this.file}.unreadable-${this.now()}`;
+      try {
+        renameSync(this.file, aside);
+      } catch {
+        /* the next write replaces it */
+      }
+      this.opts.log.error('the alarm list could not be read; it was set aside and a new one started', {
+        file: aside,
+      });
+      return;
+    }
+    this.records = parsed.records;
+    this.seq = Math.max(parsed.seq, ...this.records.map((r) => Number(r.id) || 0));
+  }
+
+  /** What the watch learnt about a machine: open, update and clear its records. */
+  observe(m: AlarmMachine, prev: WatchSummary, next: WatchSummary): void {
+    const t = this.now();
+    let changed = false;
+    // A machine that goes offline during a job.
+    if (next.state === 'offline' && (prev.state === 'running' || prev.state === 'paused')) {
+      const job = prev.job ?? next.job;
+      changed =
+        this.raise(m, {
+          key: OFFLINE_KEY,
+          severity: 'warning',
+          text: `Went offline while ${prev.state === 'running' ? 'running' : 'paused in'} a job${job ? ` (${job})` : ''}: the console cannot see what the machine does.`,
+        }) || changed;
+    } else if (next.state !== 'offline' && next.state !== 'unknown') {
+      changed = this.clear(m.id, (r) => r.key === OFFLINE_KEY, t) || changed;
+    }
+    // The family's alarms: only when it said (an offline machine keeps its last known).
+    if (next.alarms && next.state !== 'offline') {
+      const active = new Set<string>();
+      for (const a of next.alarms) {
+        active.add(a.key);
+        changed = this.raise(m, a) || changed;
+      }
+      changed = this.clear(m.id, (r) => r.key !== OFFLINE_KEY && !active.has(r.key), t) || changed;
+    }
+    if (changed) this.changed();
+  }
+
+  private openRecord(machine: string, key: string): AlarmRecord | undefined {
+    return this.records.find((r) => r.machine === machine && r.key === key && r.clearedAt === null);
+  }
+
+  /** Opens a record (or updates the open one's words). True when something changed. */
+  private raise(m: AlarmMachine, a: WatchAlarm): boolean {
+    const text = a.text.slice(0, MAX_TEXT);
+    const open = this.openRecord(m.id, a.key);
+    if (open) {
+      if (open.text === text && open.severity === a.severity) return false;
+      open.text = text;
+      // Never quieter while it lasts: a critical alarm stays critical.
+      if (SEVERITY_RANK[a.severity] > SEVERITY_RANK[open.severity]) open.severity = a.severity;
+      return true;
+    }
+    const t = this.now();
+    const r: AlarmRecord = {
+      id: String(++this.seq),
+      machine: m.id,
+      machineName: m.name,
+      family: m.kind,
+      key: a.key.slice(0, 200),
+      severity: a.severity,
+      text,
+      since: t,
+      clearedAt: null,
+      ackBy: null,
+      ackAt: null,
+    };
+    const early = this.earlyAcks.get(`${m.id}\n${a.key}`);
+    if (early && t - early.at <= EARLY_ACK_MS) {
+      r.ackBy = early.by;
+      r.ackAt = early.at;
+      this.earlyAcks.delete(`${m.id}\n${a.key}`);
+    }
+    this.records.push(r);
+    // The log line and the audit entry are the watch's (gateway.ts): one each, not two.
+    this.opts.onChange?.('alarm.raised', r);
+    return true;
+  }
+
+  private clear(machine: string, which: (r: AlarmRecord) => boolean, t: number): boolean {
+    let changed = false;
+    for (const r of this.records) {
+      if (r.machine !== machine || r.clearedAt !== null || !which(r)) continue;
+      r.clearedAt = t;
+      changed = true;
+      this.opts.onChange?.('alarm.cleared', r);
+    }
+    return changed;
+  }
+
+  /** Acknowledges a record by id: the record, 'already' (someone did), or null (no such record). */
+  acknowledge(id: string, by: string): AlarmRecord | 'already' | null {
+    const r = this.records.find((x) => x.id === id);
+    if (!r) return null;
+    if (r.ackAt !== null) return 'already';
+    r.ackBy = by.slice(0, 200);
+    r.ackAt = this.now();
+    this.opts.onChange?.('alarm.acknowledged', r);
+    this.changed();
+    return r;
+  }
+
+  /**
+   * Acknowledges a machine's alarm by its key (a page acknowledged an alarm it saw itself): the
+   * latest unacknowledged record of that key; when the watch has not seen it yet, the record it
+   * opens within a minute is born acknowledged.
+   */
+  acknowledgeKey(machine: string, key: string, by: string): AlarmRecord | 'early' {
+    const r = [...this.records]
+      .reverse()
+      .find((x) => x.machine === machine && x.key === key && x.ackAt === null);
+    if (r) {
+      const out = this.acknowledge(r.id, by);
+      if (out !== null && out !== 'already') return out;
+    }
+    if (this.earlyAcks.size > 1000) this.earlyAcks.clear();
+    this.earlyAcks.set(`${machine}\n${key}`, { by: by.slice(0, 200), at: this.now() });
+    return 'early';
+  }
+
+  get(id: string): AlarmRecord | undefined {
+    return this.records.find((r) => r.id === id);
+  }
+
+  /** The records a person may see, filtered, newest and most severe first. */
+  query(q: AlarmQuery): AlarmRecord[] {
+    const may = q.machines ? new Set(q.machines) : null;
+    const state = q.state ?? 'all';
+    const out = this.records.filter(
+      (r) =>
+        (!may || may.has(r.machine)) &&
+        (!q.machine || r.machine === q.machine) &&
+        (!q.family || r.family === q.family) &&
+        (!q.severity || r.severity === q.severity) &&
+        (state === 'all' ||
+          (state === 'active' && r.clearedAt === null) ||
+          (state === 'cleared' && r.clearedAt !== null) ||
+          (state === 'unacknowledged' && r.ackAt === null)),
+    );
+    out.sort(compareAlarms);
+    return out.slice(0, q.limit ?? 500);
+  }
+
+  private changed(): void {
+    this.version++;
+    this.prune();
+    this.scheduleWrite();
+  }
+
+  /** Bounded: cleared records past `keepMs`, then the oldest acknowledged-and-cleared ones. */
+  private prune(): void {
+    const max = this.opts.maxRecords ?? 5000;
+    const keepMs = this.opts.keepMs ?? 90 * 86_400_000;
+    const t = this.now();
+    this.records = this.records.filter((r) => r.clearedAt === null || t - r.clearedAt <= keepMs);
+    if (this.records.length <= max) return;
+    const spare = (r: AlarmRecord) => r.clearedAt === null || (r.ackAt === null && r.severity === 'critical');
+    const drop = new Set(
+      this.records
+        .filter((r) => !spare(r))
+        .sort((a, b) => a.since - b.since)
+        .slice(0, this.records.length - max)
+        .map((r) => r.id),
+    );
+    this.records = this.records.filter((r) => !drop.has(r.id));
+    // Still too many (all open): the oldest go.
+    if (this.records.length > max) this.records = this.records.slice(this.records.length - max);
+  }
+
+  private serialise(): string {
+    return JSON.stringify({ version: 1, seq: this.seq, records: this.records });
+  }
+
+  private scheduleWrite(): void {
+    if (!this.file || this.writeTimer) return;
+    this.writeTimer = setTimeout(() => {
+      this.writeTimer = null;
+      this.writing = this.writing.then(() => this.writeNow());
+    }, 200);
+    this.writeTimer.unref?.();
+  }
+
+  /** Written to a temporary file and renamed: a crash leaves the old list or the new one. */
+  private async writeNow(): Promise<void> {
+    const file = this.file;
+    if (!file) return;
+    const tmp = `${file}.tmp`;
+    try {
+      mkdirSync(join(file, '..'), { recursive: true });
+      await writeFile(tmp, this.serialise(), { mode: 0o600 });
+      await rename(tmp, file);
+    } catch (e) {
+      this.opts.log.error('cannot write the alarm list', { file, error: String(e) });
+    }
+  }
+
+  /** Writes what is pending now (shutdown). */
+  async close(): Promise<void> {
+    if (this.writeTimer) {
+      clearTimeout(this.writeTimer);
+      this.writeTimer = null;
+      this.writing = this.writing.then(() => this.writeNow());
+    }
+    await this.writing;
+  }
+
+  /** For a synchronous shutdown path: writes at once. */
+  flushSync(): void {
+    if (!this.file || !this.writeTimer) return;
+    clearTimeout(this.writeTimer);
+    this.writeTimer = null;
+    const tmp = `${this.file}.tmp`;
+    writeFileSync(tmp, this.serialise(), { mode: 0o600 });
+    renameSync(tmp, this.file);
+  }
+}
+
+/** What the webhook receives: the event, a line for chat receivers (`text`), the record. */
+export function webhookPayload(event: AlarmEvent | 'test', r: AlarmRecord): Record<string, unknown> {
+  const words = {
+    'alarm.raised': 'Alarm',
+    'alarm.cleared': 'Cleared',
+    'alarm.acknowledged': 'Acknowledged',
+    test: 'Test',
+  };
+  const by = event === 'alarm.acknowledged' && r.ackBy ? ` (by ${r.ackBy})` : '';
+  return {
+    source: 'shopdeck',
+    event,
+    text: `${words[event]}: ${alarmLine(r)}${by}`,
+    alarm: { ...r, since: new Date(r.since).toISOString(), clearedAt: iso(r.clearedAt), ackAt: iso(r.ackAt) },
+  };
+}
+
+function iso(t: number | null): string | null {
+  return t === null ? null : new Date(t).toISOString();
+}
+
+/** The alarm centre, the server settings and the webhook that sends alarms on, wired together. */
+export function createAlarmStores(o: {
+  dataDir: string;
+  env: NodeJS.ProcessEnv;
+  log: Logger;
+  now: () => number;
+}): { alarms: AlarmCentre; settings: SettingsStore; webhook: Webhook } {
+  const settings = new SettingsStore(o.dataDir, o.env, o.log);
+  const webhook = new Webhook({ url: () => settings.webhookUrl(), log: o.log });
+  const alarms = new AlarmCentre({
+    dataDir: o.dataDir,
+    log: o.log,
+    now: o.now,
+    onChange: (event, r) => webhook.send(`${event} ${r.id}`, webhookPayload(event, r)),
+  });
+  return { alarms, settings, webhook };
+}
