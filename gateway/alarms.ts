@@ -25,6 +25,8 @@ export interface AlarmRecord {
   key: string;
   severity: AlarmSeverity;
   text: string;
+  /** Blocks every page until a person acknowledges it (an xTool flame). */
+  blocking: boolean;
   since: number;
   clearedAt: number | null;
   ackBy: string | null;
@@ -78,6 +80,7 @@ const recordSchema = z.object({
   key: z.string().max(200),
   severity: z.enum(['critical', 'warning', 'info']),
   text: z.string().max(MAX_TEXT),
+  blocking: z.boolean().default(false),
   since: z.number(),
   clearedAt: z.number().nullable(),
   ackBy: z.string().max(200).nullable(),
@@ -204,6 +207,7 @@ export class AlarmCentre {
       key: a.key.slice(0, 200),
       severity: a.severity,
       text,
+      blocking: a.blocking === true,
       since: t,
       clearedAt: null,
       ackBy: null,

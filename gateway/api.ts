@@ -502,6 +502,7 @@ export function createApi(ctx: GatewayContext, stores: ApiStores = createAlarmSt
             family: 'test',
             key: 'test',
             severity: 'info',
+            blocking: false,
             text: `a test sent by ${p.name} from the console's settings`,
             since: t,
             clearedAt: null,

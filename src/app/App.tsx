@@ -3,10 +3,11 @@ import { useStore } from 'zustand';
 import { familyPages } from '../controllers';
 import { authStore } from '../fleet/auth';
 import { EmptyState, Loading } from '../ui';
-import { AlarmBanner, useBlockingAlarms } from './AlarmBanner';
+import { AlarmBanner, CriticalBanner, useBlockingAlarms } from './AlarmBanner';
+import { alarmFeed, startAlarmFeed } from './alarms/feed';
 import { AuthMenu } from './auth/UserControls';
 import { ErrorBoundary } from './ErrorBoundary';
-import { AuditPage, FleetPage, LoginPage, MachinePage } from './pages';
+import { AlarmsPage, AuditPage, FleetPage, LoginPage, MachinePage } from './pages';
 import { Link, matchRoute, useLocation } from './router';
 
 type ThemeChoice = 'system' | 'light' | 'dark';
@@ -32,6 +33,12 @@ export function App() {
   const user = useStore(authStore, (s) => s.user);
   const openOnNetwork = useStore(authStore, (s) => s.openOnNetwork === true);
   const blocking = useBlockingAlarms();
+  // The alarm centre's list, followed by every page (its banner is on every page).
+  useEffect(() => startAlarmFeed(), []);
+  const activeAlarms = useStore(
+    alarmFeed,
+    (s) => s.records?.filter((r) => r.clearedAt === null && r.ackAt === null).length ?? 0,
+  );
 
   let body: React.ReactNode;
   switch (route.name) {
@@ -43,6 +50,9 @@ export function App() {
       break;
     case 'audit':
       body = <AuditPage />;
+      break;
+    case 'alarms':
+      body = <AlarmsPage />;
       break;
     case 'login':
       body = <LoginPage />;
@@ -73,6 +83,14 @@ export function App() {
             <Link to="/" className={route.name === 'fleet' ? 'active' : ''}>
               Fleet
             </Link>
+            <Link to="/alarms" className={route.name === 'alarms' ? 'active' : ''} data-testid="nav-alarms">
+              Alarms
+              {activeAlarms > 0 && (
+                <span className="nav-count" aria-label={`${activeAlarms} unacknowledged`}>
+                  {activeAlarms}
+                </span>
+              )}
+            </Link>
             <Link to="/audit" className={route.name === 'audit' ? 'active' : ''}>
               Audit
             </Link>
@@ -99,6 +117,7 @@ export function App() {
             <AuthMenu />
           </div>
         </header>
+        <CriticalBanner hideOn={route.name === 'machine' ? route.id : null} />
         {mode === 'open' && (
           <div className="open-banner" role="note" data-testid="open-mode-banner">
             {openOnNetwork

@@ -1,6 +1,6 @@
 // @vitest-environment happy-dom
 import { act, cleanup, fireEvent, render, screen, within } from '@testing-library/react';
-import { afterEach, beforeAll, describe, expect, it } from 'vitest';
+import { afterEach, beforeAll, describe, expect, it, vi } from 'vitest';
 import { registerController } from '../controllers';
 import type { ControllerModule, MachineSession, SessionContext } from '../fleet/contract';
 import { createRuntime, fleetStore, registerRuntime, type MachineRuntime } from '../fleet/fleet';
@@ -94,6 +94,18 @@ describe('machine sections', () => {
 
 describe('blocking alarm', () => {
   it('is a modal alert dialog named "Critical alarm"; the page behind is inert until it is acknowledged', () => {
+    // The gateway: an empty alarm list, and the acknowledgement taken.
+    const posted: unknown[] = [];
+    vi.stubGlobal(
+      'fetch',
+      vi.fn((url: string, init?: RequestInit) => {
+        if (init?.method === 'POST') posted.push([url, JSON.parse(String(init.body))]);
+        const body = url.startsWith('/api/alarms/ack')
+          ? { alarm: null, early: true }
+          : { version: 1, alarms: [] };
+        return Promise.resolve(new Response(JSON.stringify(body), { status: 200 }));
+      }),
+    );
     render(<App />);
     const page = screen.getByTestId('app-page');
     expect(page.hasAttribute('inert')).toBe(false);
@@ -119,6 +131,9 @@ describe('blocking alarm', () => {
 
     fireEvent.click(within(alarm).getByRole('button', { name: /acknowledge/ }));
     expect(acknowledged).toEqual(['flame']);
+    // Recorded at the gateway (who and when), by machine and key: the list had no record of it yet.
+    expect(posted).toEqual([['/api/alarms/ack', { machine: 'mill', key: 'flame' }]]);
+    vi.unstubAllGlobals();
     expect(screen.queryByRole('alertdialog')).toBeNull();
     expect(page.hasAttribute('inert')).toBe(false);
   });

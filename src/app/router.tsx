@@ -61,6 +61,7 @@ export type Route =
   | { name: 'fleet' }
   | { name: 'machine'; id: string; tab: string | null }
   | { name: 'audit' }
+  | { name: 'alarms' }
   | { name: 'login' }
   | { name: 'family-page'; kind: string; page: string }
   | { name: 'not-found' };
@@ -85,6 +86,7 @@ export function matchRoute(pathname: string): Route {
   if (parts.length === 0) return { name: 'fleet' };
   if (parts[0] === 'm' && parts[1]) return { name: 'machine', id: parts[1], tab: parts[2] ?? null };
   if (parts[0] === 'audit' && parts.length === 1) return { name: 'audit' };
+  if (parts[0] === 'alarms' && parts.length === 1) return { name: 'alarms' };
   if (parts[0] === 'login' && parts.length === 1) return { name: 'login' };
   if (parts.length === 2 && parts[0] && parts[1])
     return { name: 'family-page', kind: parts[0], page: parts[1] };

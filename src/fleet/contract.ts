@@ -176,6 +176,8 @@ export interface WatchAlarm {
   key: string;
   severity: AlarmSeverity;
   text: string;
+  /** Blocks every page until acknowledged (an xTool flame): the family's `Alarm.blocking`. */
+  blocking?: boolean;
 }
 
 /** The summary of a machine the gateway's watch keeps (state and alarms, for audit and history). */
@@ -198,7 +200,12 @@ export type WatchNews = Partial<WatchSummary> & { raise?: WatchAlarm[] };
 
 /** A family's own alarms (the same ids and words as on its pages) as the watch records them. */
 export function watchAlarmsOf(alarms: readonly Alarm[]): WatchAlarm[] {
-  return alarms.map((a) => ({ key: a.id, severity: a.severity, text: a.message }));
+  return alarms.map((a) => ({
+    key: a.id,
+    severity: a.severity,
+    text: a.message,
+    ...(a.blocking ? { blocking: true } : {}),
+  }));
 }
 
 /** A machine's activity as the watch records it (the same reading for every family). */

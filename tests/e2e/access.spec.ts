@@ -1,10 +1,9 @@
-import { spawn, type ChildProcess } from 'node:child_process';
 import { mkdtempSync, readFileSync, rmSync, writeFileSync } from 'node:fs';
-import { createServer } from 'node:net';
 import { tmpdir } from 'node:os';
 import { join } from 'node:path';
 import { expect, test, type Browser, type Page } from '@playwright/test';
 import bcrypt from 'bcryptjs';
+import { Children, freePort, waitFor } from './own-server';
 
 /**
  * Access control end to end, through the real gateway (vite preview) with a users file, against
@@ -24,43 +23,7 @@ const ID = 'sim-xtool';
 let dir = '';
 let base = '';
 let simUrl = '';
-const children: ChildProcess[] = [];
-
-function freePort(): Promise<number> {
-  return new Promise((resolve) => {
-    const s = createServer();
-    s.listen(0, '127.0.0.1', () => {
-      const p = (s.address() as { port: number }).port;
-      s.close(() => resolve(p));
-    });
-  });
-}
-
-async function waitFor(url: string, what: string): Promise<void> {
-  for (let i = 0; i < 240; i++) {
-    try {
-      const r = await fetch(url);
-      if (r.status < 500) return;
-    } catch {
-      // not up yet
-    }
-    await new Promise((r) => setTimeout(r, 250));
-  }
-  throw new Error(`${what} did not start`);
-}
-
-/** A Node child in its own process group, so that stopping it stops everything it started. */
-function start(args: string[], env: NodeJS.ProcessEnv): ChildProcess {
-  const c = spawn(process.execPath, args, {
-    env: { ...process.env, ...env },
-    stdio: ['ignore', 'pipe', 'pipe'],
-    detached: true,
-  });
-  c.stdout?.resume();
-  c.stderr?.resume();
-  children.push(c);
-  return c;
-}
+const children = new Children();
 
 test.describe.configure({ mode: 'serial' });
 
@@ -69,7 +32,7 @@ test.describe('access control', () => {
     if (info.project.name !== 'desktop') return;
     dir = mkdtempSync(join(tmpdir(), 'shopdeck-access-'));
     const simFile = join(dir, 'sim-machines.json');
-    start(['--import', 'tsx', 'scripts/sim.ts', '--write', simFile], {});
+    children.start(['--import', 'tsx', 'scripts/sim.ts', '--write', simFile], {});
     for (let i = 0; i < 240 && !simUrl; i++) {
       try {
         const f = JSON.parse(readFileSync(simFile, 'utf8')) as {
@@ -100,7 +63,7 @@ test.describe('access control', () => {
     const port = await freePort();
     base = `http://127.0.0.1:${port}`;
     const outDir = process.env.SHOPDECK_E2E_OUTDIR ? ['--outDir', process.env.SHOPDECK_E2E_OUTDIR] : [];
-    start(
+    children.start(
       [
         'node_modules/vite/bin/vite.js',
         'preview',
@@ -121,15 +84,7 @@ test.describe('access control', () => {
   });
 
   test.afterAll(() => {
-    for (const c of children) {
-      if (c.pid && c.exitCode === null) {
-        try {
-          process.kill(-c.pid, 'SIGTERM');
-        } catch {
-          c.kill('SIGTERM');
-        }
-      }
-    }
+    children.stopAll();
     if (dir) rmSync(dir, { recursive: true, force: true });
   });
 

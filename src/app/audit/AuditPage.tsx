@@ -60,6 +60,8 @@ const TYPE_WORDS: Record<string, string> = {
   'role-change': 'Role change',
   'password-change': 'Password change',
   machine: 'Machine',
+  'alarm-ack': 'Alarm acknowledged',
+  settings: 'Settings',
 };
 
 const RESULT_TONE: Record<string, Tone> = { ok: 'ok', error: 'bad', refused: 'warn', failed: 'bad' };

@@ -206,7 +206,14 @@ describe('xTool sharing: the watch', () => {
     expect(read('err:flameCheck')).toEqual({
       state: 'alarm',
       alarm: expect.stringMatching(/^FLAME DETECTED/),
-      raise: [{ key: 'xtool-flame', severity: 'critical', text: expect.stringMatching(/^FLAME DETECTED/) }],
+      raise: [
+        {
+          key: 'xtool-flame',
+          severity: 'critical',
+          text: expect.stringMatching(/^FLAME DETECTED/),
+          blocking: true,
+        },
+      ],
     });
     expect(read('err:tiltCheck')).toMatchObject({
       state: 'alarm',

@@ -1,0 +1,61 @@
+import { spawn, type ChildProcess } from 'node:child_process';
+import { createServer } from 'node:net';
+
+/**
+ * For specs that run a console of their own (a users file, their own machines, their own
+ * environment) beside the shared one of playwright.config.ts: a free port, a child process in its
+ * own process group, and a wait until it answers.
+ */
+
+export function freePort(): Promise<number> {
+  return new Promise((resolve) => {
+    const s = createServer();
+    s.listen(0, '127.0.0.1', () => {
+      const p = (s.address() as { port: number }).port;
+      s.close(() => resolve(p));
+    });
+  });
+}
+
+export async function waitFor(url: string, what: string): Promise<void> {
+  for (let i = 0; i < 240; i++) {
+    try {
+      const r = await fetch(url);
+      if (r.status < 500) return;
+    } catch {
+      // not up yet
+    }
+    await new Promise((r) => setTimeout(r, 250));
+  }
+  throw new Error(`${what} did not start`);
+}
+
+/** Node children started by a spec; `stopAll` ends them and what they started. */
+export class Children {
+  private readonly list: ChildProcess[] = [];
+
+  /** A Node child in its own process group, so that stopping it stops everything it started. */
+  start(args: string[], env: NodeJS.ProcessEnv): ChildProcess {
+    const c = spawn(process.execPath, args, {
+      env: { ...process.env, ...env },
+      stdio: ['ignore', 'pipe', 'pipe'],
+      detached: true,
+    });
+    c.stdout?.resume();
+    c.stderr?.resume();
+    this.list.push(c);
+    return c;
+  }
+
+  stopAll(): void {
+    for (const c of this.list.splice(0)) {
+      if (c.pid && c.exitCode === null) {
+        try {
+          process.kill(-c.pid, 'SIGTERM');
+        } catch {
+          c.kill('SIGTERM');
+        }
+      }
+    }
+  }
+}
