@@ -1,12 +1,15 @@
 import react from '@vitejs/plugin-react';
 import { defineConfig } from 'vite';
+import { VitePWA } from 'vite-plugin-pwa';
 import { shopdeckGateway } from './gateway/plugin';
 import { bundleReport } from './scripts/bundle-report';
+import { pwaOptions } from './src/app/pwa/options';
 
 // The gateway is a Vite plugin: the same code serves `npm run dev` and `npm start` (vite preview).
 export default defineConfig({
   // The bundle report (bundle-report/bundle.{json,md}): sizes of what each screen loads.
-  plugins: [react(), shopdeckGateway(), bundleReport()],
+  // VitePWA: the web manifest and the service worker, in builds only (src/app/pwa/options.ts).
+  plugins: [react(), shopdeckGateway(), bundleReport(), VitePWA(pwaOptions)],
   server: { port: Number(process.env.SHOPDECK_PORT ?? 5173), host: process.env.SHOPDECK_HOST ?? 'localhost' },
   preview: {
     port: Number(process.env.SHOPDECK_PORT ?? 4173),

@@ -8,6 +8,8 @@ import type { IncomingMessage, ServerResponse } from 'node:http';
  * - `frame-ancestors 'none'` and `X-Frame-Options: DENY`: no other page may frame the console
  *   (clickjacking a Stop or a setting).
  * - `connect-src 'self'`: the page talks to its own origin only (HTTP and WebSocket).
+ * - `worker-src 'self'`, `manifest-src 'self'`: the installed console's service worker and web
+ *   manifest (src/app/pwa/), from this origin only.
  * - Development (`npm run dev`) needs inline script for React's hot reload: there, and only
  *   there, `script-src` allows it.
  */

@@ -31,8 +31,10 @@ import {
  *   mounts it (gateway/plugin.ts), behind the same page security headers (gateway/page-headers.ts).
  * - `/assets/*` (hashed file names): `Cache-Control: public, max-age=31536000, immutable`.
  * - Everything else from `dist/` and the single-page fallback (`/m/laser-1` → index.html):
- *   `no-cache` with an ETag. Precompressed `.br`/`.gz` copies (server/compress.ts) are sent to
- *   browsers that accept them. Source maps are never served.
+ *   `no-cache` with an ETag — the service worker (`/sw.js`) and `/manifest.webmanifest` too, so
+ *   an installed tablet sees a new version (server/pwa.test.ts). Precompressed `.br`/`.gz`
+ *   copies (server/compress.ts) are sent to browsers that accept them. Source maps are never
+ *   served.
  * - `/healthz`: whether the machines and users files loaded (503 when not, or while stopping).
  * - HTTPS (`SHOPDECK_TLS_CERT`/`_KEY`, or `SHOPDECK_HTTPS=1` for a kept self-signed certificate)
  *   with HSTS; `SHOPDECK_HTTP_REDIRECT_PORT` answers plain HTTP with a redirect only.

@@ -16,6 +16,7 @@ import { backoffDelay } from '../fleet/link';
 import { MACHINE_KINDS, type MachineInfo, type MachineKind } from '../fleet/types';
 import { CONSOLE_HEADERS } from '../fleet/origin';
 import { fetchSession, trackActivity } from './auth/api';
+import { untilReachable } from './pwa/reach';
 
 const MachinesAnswer = z.object({
   machines: z.array(
@@ -30,7 +31,8 @@ const MachinesAnswer = z.object({
 
 export async function loadSession(): Promise<void> {
   try {
-    await fetchSession();
+    // No answer at all (offline, server down): "Console unreachable — retrying" until it answers.
+    await untilReachable(fetchSession);
   } catch {
     // A gateway without access control: behave as open mode, and say so in the banner.
     authStore.setState({ mode: 'open', user: null });
@@ -47,7 +49,9 @@ export async function boot(): Promise<void> {
   await loadSession();
   let machines: MachineInfo[];
   try {
-    const r = await fetch('/api/machines', { credentials: 'same-origin', headers: CONSOLE_HEADERS });
+    const r = await untilReachable(() =>
+      fetch('/api/machines', { credentials: 'same-origin', headers: CONSOLE_HEADERS }),
+    );
     if (r.status === 401) {
       fleetStore.setState({ status: 'ready', machines: [], error: null });
       return;
