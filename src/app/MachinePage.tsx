@@ -9,6 +9,7 @@ import { roleAtLeast } from '../fleet/types';
 import { Badge, EmptyState, Loading, Notice, Panel } from '../ui';
 import { MachineAge, RetryIn } from './Age';
 import { ErrorBoundary } from './ErrorBoundary';
+import { KioskPage } from './kiosk/KioskPage';
 import { Link } from './router';
 import { ACTIVITY_TONE, ACTIVITY_WORDS, LINK_TONE } from './status';
 
@@ -20,20 +21,27 @@ interface PageTab {
   render: () => React.ReactNode;
 }
 
-export function MachinePage({ id, tab }: { id: string; tab: string | null }) {
+/** `kiosk`: the machine alone for a tablet at the machine (`/m/<id>?kiosk`, src/app/kiosk/). */
+export function MachinePage({ id, tab, kiosk = false }: { id: string; tab: string | null; kiosk?: boolean }) {
   const status = useStore(fleetStore, (s) => s.status);
   const rt = getRuntime(id);
   if (!rt) {
     if (status === 'loading') return <EmptyState>Loading…</EmptyState>;
     return (
       <Notice tone="warn" title="No such machine">
-        There is no machine “{id}” in this console. <Link to="/">Back to the fleet</Link>
+        There is no machine “{id}” in this console.
+        {!kiosk && (
+          <>
+            {' '}
+            <Link to="/">Back to the fleet</Link>
+          </>
+        )}
       </Notice>
     );
   }
   return (
     <ErrorBoundary label={rt.info.name}>
-      <MachinePageBody rt={rt} tab={tab} />
+      {kiosk ? <KioskPage rt={rt} /> : <MachinePageBody rt={rt} tab={tab} />}
     </ErrorBoundary>
   );
 }
