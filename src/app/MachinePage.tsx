@@ -9,11 +9,12 @@ import { roleAtLeast } from '../fleet/types';
 import { Badge, EmptyState, Loading, Notice, Panel } from '../ui';
 import { MachineAge, RetryIn } from './Age';
 import { ErrorBoundary } from './ErrorBoundary';
-import { KioskPage } from './kiosk/KioskPage';
 import { Link } from './router';
 import { ACTIVITY_TONE, ACTIVITY_WORDS, LINK_TONE } from './status';
 
 const SimulatorPanel = lazyView(() => import('./SimulatorPanel'), 'SimulatorPanel');
+// A chunk of its own: a machine page that is not a kiosk does not carry it.
+const KioskPage = lazyView(() => import('./kiosk/KioskPage'), 'KioskPage');
 
 interface PageTab {
   id: string;
@@ -41,7 +42,13 @@ export function MachinePage({ id, tab, kiosk = false }: { id: string; tab: strin
   }
   return (
     <ErrorBoundary label={rt.info.name}>
-      {kiosk ? <KioskPage rt={rt} /> : <MachinePageBody rt={rt} tab={tab} />}
+      {kiosk ? (
+        <Suspense fallback={<Loading />}>
+          <KioskPage rt={rt} />
+        </Suspense>
+      ) : (
+        <MachinePageBody rt={rt} tab={tab} />
+      )}
     </ErrorBoundary>
   );
 }
