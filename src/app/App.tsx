@@ -26,8 +26,10 @@ function useTheme(): [ThemeChoice, (t: ThemeChoice) => void] {
 }
 
 export function App() {
-  const { pathname } = useLocation();
-  const route = matchRoute(pathname);
+  const { pathname, search } = useLocation();
+  const route = matchRoute(pathname, search);
+  // Kiosk tablet (`/m/<id>?kiosk`): one machine, nothing to navigate away with (src/app/kiosk/).
+  const kiosk = route.name === 'machine' && route.kiosk === true;
   const [theme, setTheme] = useTheme();
   const mode = useStore(authStore, (s) => s.mode);
   const user = useStore(authStore, (s) => s.user);
@@ -46,7 +48,7 @@ export function App() {
       body = <FleetPage />;
       break;
     case 'machine':
-      body = <MachinePage id={route.id} tab={route.tab} />;
+      body = <MachinePage id={route.id} tab={route.tab} kiosk={kiosk} />;
       break;
     case 'audit':
       body = <AuditPage />;
@@ -71,10 +73,10 @@ export function App() {
   }
 
   return (
-    <div className="app">
+    <div className={kiosk ? 'app kiosk' : 'app'}>
       {/* A blocking alarm makes the whole page behind it inert: no click, no focus, no reading. */}
       <div className="app-page" inert={blocking.length > 0} data-testid="app-page">
-        <header className="topbar">
+        <header className="topbar" hidden={kiosk}>
           <Link to="/" className="brand" aria-label="Shopdeck fleet">
             <img src="/favicon.svg" alt="" width={26} height={26} />
             Shopdeck

@@ -13,6 +13,8 @@ import { Link } from './router';
 import { ACTIVITY_TONE, ACTIVITY_WORDS, LINK_TONE } from './status';
 
 const SimulatorPanel = lazyView(() => import('./SimulatorPanel'), 'SimulatorPanel');
+// A chunk of its own: a machine page that is not a kiosk does not carry it.
+const KioskPage = lazyView(() => import('./kiosk/KioskPage'), 'KioskPage');
 
 interface PageTab {
   id: string;
@@ -20,20 +22,33 @@ interface PageTab {
   render: () => React.ReactNode;
 }
 
-export function MachinePage({ id, tab }: { id: string; tab: string | null }) {
+/** `kiosk`: the machine alone for a tablet at the machine (`/m/<id>?kiosk`, src/app/kiosk/). */
+export function MachinePage({ id, tab, kiosk = false }: { id: string; tab: string | null; kiosk?: boolean }) {
   const status = useStore(fleetStore, (s) => s.status);
   const rt = getRuntime(id);
   if (!rt) {
     if (status === 'loading') return <EmptyState>Loading…</EmptyState>;
     return (
       <Notice tone="warn" title="No such machine">
-        There is no machine “{id}” in this console. <Link to="/">Back to the fleet</Link>
+        There is no machine “{id}” in this console.
+        {!kiosk && (
+          <>
+            {' '}
+            <Link to="/">Back to the fleet</Link>
+          </>
+        )}
       </Notice>
     );
   }
   return (
     <ErrorBoundary label={rt.info.name}>
-      <MachinePageBody rt={rt} tab={tab} />
+      {kiosk ? (
+        <Suspense fallback={<Loading />}>
+          <KioskPage rt={rt} />
+        </Suspense>
+      ) : (
+        <MachinePageBody rt={rt} tab={tab} />
+      )}
     </ErrorBoundary>
   );
 }

@@ -59,7 +59,8 @@ export function Link(
 
 export type Route =
   | { name: 'fleet' }
-  | { name: 'machine'; id: string; tab: string | null }
+  /** `kiosk`: `/m/<id>?kiosk`, the machine alone, full screen (src/app/kiosk/); absent otherwise. */
+  | { name: 'machine'; id: string; tab: string | null; kiosk?: true }
   | { name: 'audit' }
   | { name: 'alarms' }
   | { name: 'login' }
@@ -76,7 +77,7 @@ function decodeSegment(segment: string): string | null {
 }
 
 /** Never throws: a path that cannot be decoded is the not-found route (rendered by the app). */
-export function matchRoute(pathname: string): Route {
+export function matchRoute(pathname: string, search = ''): Route {
   const parts: string[] = [];
   for (const segment of pathname.split('/').filter(Boolean)) {
     const part = decodeSegment(segment);
@@ -84,7 +85,10 @@ export function matchRoute(pathname: string): Route {
     parts.push(part);
   }
   if (parts.length === 0) return { name: 'fleet' };
-  if (parts[0] === 'm' && parts[1]) return { name: 'machine', id: parts[1], tab: parts[2] ?? null };
+  if (parts[0] === 'm' && parts[1]) {
+    const route: Route = { name: 'machine', id: parts[1], tab: parts[2] ?? null };
+    return new URLSearchParams(search).has('kiosk') ? { ...route, kiosk: true } : route;
+  }
   if (parts[0] === 'audit' && parts.length === 1) return { name: 'audit' };
   if (parts[0] === 'alarms' && parts.length === 1) return { name: 'alarms' };
   if (parts[0] === 'login' && parts.length === 1) return { name: 'login' };

@@ -1,7 +1,8 @@
-import { CommandButton, useSnapshot, useStoreSelect } from '../../../fleet/react';
+import { useSnapshot, useStoreSelect } from '../../../fleet/react';
 import { KeyValues, Panel } from '../../../ui';
 import type { G2coreSession } from '../session';
 import { Alarms, Controls, Dro, JobProgress, ModalState, StatBadge } from './common';
+import { Overrides } from './Overrides';
 
 /** The machine page's first tab: state, alarms, controls, job, DRO, modal state, overrides, version. */
 export function OverviewTab({ session }: { session: G2coreSession }) {
@@ -31,58 +32,6 @@ export function OverviewTab({ session }: { session: G2coreSession }) {
       <Overrides session={session} />
       <VersionPanel session={session} />
     </div>
-  );
-}
-
-const STEPS = [-0.1, 0.1] as const;
-
-function Overrides({ session }: { session: G2coreSession }) {
-  const { mfo, sso, enabled } = useStoreSelect(session.detail, (d) => ({
-    mfo: typeof d.sr.mfo === 'number' ? d.sr.mfo : null,
-    sso: typeof d.sr.sso === 'number' ? d.sr.sso : null,
-    enabled: d.overrides,
-  }));
-  if (mfo === null && sso === null) return null;
-  const { commands: runner, snapshot } = session.ctx;
-  const row = (key: 'mfo' | 'sso', value: number, on: boolean | null, what: string) => (
-    <div style={{ marginBottom: 12 }} data-testid={`g2-override-${key}`}>
-      <div className="ui-row" style={{ justifyContent: 'space-between' }}>
-        <strong>{what}</strong>
-        <span style={{ fontSize: '1.4rem' }}>{Math.round(value * 100)} %</span>
-      </div>
-      {on === false && (
-        <div className="ui-muted">
-          Disabled in the settings ({key}e = 0): the factor is stored but not applied.
-        </div>
-      )}
-      <div className="g2-choices">
-        {STEPS.map((d) => (
-          <CommandButton
-            key={d}
-            runner={runner}
-            snapshot={snapshot}
-            command={session.setOverride}
-            args={{ key, value: Math.round(Math.min(2, Math.max(0.05, value + d)) * 100) / 100 }}
-          >
-            {d > 0 ? '+10 %' : '−10 %'}
-          </CommandButton>
-        ))}
-        <CommandButton
-          runner={runner}
-          snapshot={snapshot}
-          command={session.setOverride}
-          args={{ key, value: 1 }}
-        >
-          100 %
-        </CommandButton>
-      </div>
-    </div>
-  );
-  return (
-    <Panel title="Overrides">
-      {mfo !== null && row('mfo', mfo, enabled.mfoe, 'Feed override')}
-      {sso !== null && row('sso', sso, enabled.ssoe, 'Spindle override')}
-    </Panel>
   );
 }
 

@@ -4,6 +4,7 @@ import type { TabProps } from '../../../fleet/contract';
 import { describeError } from '../../../fleet/errors';
 import { CommandButton, useStoreSelect } from '../../../fleet/react';
 import { Badge, Button, Field, KeyValues, Notice, Panel, formatNumber } from '../../../ui';
+import { LockableInput } from '../../../ui/Lockable';
 import { GRID } from './layout';
 import { useXtoolSettings } from '../queries';
 import type { XtoolSession } from '../session';
@@ -34,9 +35,10 @@ function ByteSetting(props: {
     >
       {(id) => (
         <div className="ui-row">
-          <input
+          {/* Locked against touch on touch screens until its lock is tapped (src/ui/Lockable.tsx). */}
+          <LockableInput
             id={id}
-            className="ui-input"
+            lockLabel={props.label.toLowerCase()}
             inputMode="numeric"
             value={text}
             placeholder={props.current !== undefined ? String(props.current) : '0–255'}

@@ -1,0 +1,236 @@
+import { Suspense, useEffect, type ComponentType } from 'react';
+import { FAMILY_LABELS, useController } from '../../controllers';
+import type { AnyCommand } from '../../fleet/commands';
+import { linkWords, type MachineSession, type TabProps } from '../../fleet/contract';
+import { showDetail, type MachineRuntime } from '../../fleet/fleet';
+import { CommandButton, useRole, useSnapshot } from '../../fleet/react';
+import { mostSevereAlarm, roleAtLeast, type Activity } from '../../fleet/types';
+import { Badge, Loading, Notice, Panel, ProgressBar, formatDuration, formatPercent } from '../../ui';
+import { TouchLockPolicy } from '../../ui/Lockable';
+import { MachineAge, RetryIn } from '../Age';
+import { ErrorBoundary } from '../ErrorBoundary';
+import { ACTIVITY_TONE, ACTIVITY_WORDS, LINK_TONE } from '../status';
+import { KIOSK_FAMILIES, type KioskFamily } from './families';
+import { useScreenWakeLock, type WakeStatus } from './wake-lock';
+
+/** A job is under way: the screen stays on. */
+const JOB_UNDER_WAY: ReadonlySet<Activity> = new Set<Activity>(['running', 'paused', 'stopping']);
+
+/**
+ * The kiosk page (`/m/<id>?kiosk`): one machine on a tablet at the machine, full screen, nothing
+ * to navigate away with. Very large state, progress and time left; the job controls the user's
+ * role may use, sized for gloves, stop set well apart from pause and resume; sliders and numeric
+ * inputs locked against touch; the screen kept on while a job runs.
+ */
+export function KioskPage({ rt }: { rt: MachineRuntime }) {
+  const info = rt.info;
+  const mod = useController(info.kind);
+  const s = useSnapshot(rt, (x) => ({
+    link: x.link,
+    activity: x.activity,
+    activityLabel: x.activityLabel,
+    job: x.job,
+    alarms: x.alarms,
+    problem: x.problem,
+    identity: x.identity,
+    retryAt: x.retryAt,
+  }));
+  // The machine's details at full pace while the kiosk shows it (as the machine page does).
+  useEffect(() => showDetail(info.id), [info.id]);
+  const wake = useScreenWakeLock(JOB_UNDER_WAY.has(s.activity));
+  const session = rt.session;
+  const family = KIOSK_FAMILIES[info.kind];
+  const LoginForm = mod?.LoginForm as ComponentType<TabProps<MachineSession>> | undefined;
+  const Extra = family?.Extra;
+  const alarm = mostSevereAlarm(s.alarms.filter((a) => !a.acknowledged));
+
+  return (
+    <TouchLockPolicy value="always">
+      <div
+        className={`kiosk-page activity-${s.activity}`}
+        data-testid={`kiosk-${info.id}`}
+        data-activity={s.activity}
+      >
+        <header className="kiosk-head">
+          <div className="kiosk-title">
+            <h1>{info.name}</h1>
+            <div className="ui-muted">
+              {FAMILY_LABELS[info.kind]}
+              {s.identity ? ` · ${s.identity}` : ''}
+            </div>
+          </div>
+          <div className="kiosk-link">
+            <Badge tone={LINK_TONE[s.link]} testId="kiosk-link">
+              {linkWords(s.link)}
+            </Badge>
+            <MachineAge rt={rt} testId="kiosk-data-age" />
+          </div>
+        </header>
+        {info.simulated && (
+          <div className="sim-banner" role="note" data-testid="simulated-banner">
+            Simulated machine: nothing real moves.
+          </div>
+        )}
+        {s.problem && s.link !== 'online' && (
+          <Notice
+            tone={s.link === 'protocol-error' ? 'bad' : 'warn'}
+            title={linkWords(s.link)}
+            testId="link-problem"
+          >
+            {s.problem.message}
+            <RetryIn at={s.retryAt} />
+          </Notice>
+        )}
+        {s.link === 'needs-login' && LoginForm && session && (
+          <Panel title="Log in to this machine">
+            <LoginForm session={session} />
+          </Panel>
+        )}
+        {rt.error && (
+          <Notice tone="bad" title="This machine cannot be shown">
+            {rt.error}
+          </Notice>
+        )}
+
+        <section className="kiosk-state" aria-label="State">
+          <div className={`kiosk-activity tone-${ACTIVITY_TONE[s.activity]}`} data-testid="kiosk-activity">
+            {ACTIVITY_WORDS[s.activity]}
+          </div>
+          <div className="kiosk-label" data-testid="kiosk-label">
+            {s.activityLabel}
+          </div>
+          {alarm && (
+            <div
+              className={`kiosk-alarm tone-${alarm.severity === 'critical' ? 'bad' : alarm.severity === 'warning' ? 'warn' : 'info'}`}
+              role="alert"
+              data-testid="kiosk-alarm"
+            >
+              {alarm.severity !== 'info' && <span aria-hidden="true">⚠ </span>}
+              {alarm.message}
+            </div>
+          )}
+        </section>
+
+        <section className="kiosk-job" aria-label="Job">
+          {s.job ? (
+            <>
+              <div className="kiosk-job-name" title={s.job.name ?? undefined}>
+                {s.job.name ?? 'Job'}
+              </div>
+              <ProgressBar value={s.job.progress} label="Job progress" />
+              <div className="kiosk-figures">
+                <div>
+                  <span className="kiosk-big" data-testid="kiosk-progress">
+                    {formatPercent(s.job.progress)}
+                  </span>
+                  <span className="kiosk-unit">done</span>
+                </div>
+                <div>
+                  <span className="kiosk-big" data-testid="kiosk-remaining">
+                    {s.job.remaining !== null
+                      ? formatDuration(s.job.remaining)
+                      : s.job.elapsed !== null
+                        ? formatDuration(s.job.elapsed)
+                        : '—'}
+                  </span>
+                  <span className="kiosk-unit">
+                    {s.job.remaining === null && s.job.elapsed !== null ? 'elapsed' : 'left'}
+                  </span>
+                </div>
+              </div>
+            </>
+          ) : (
+            <div className="kiosk-no-job ui-muted" data-testid="kiosk-no-job">
+              No job
+            </div>
+          )}
+        </section>
+
+        {session && family && <KioskControls session={session} family={family} />}
+        {session && !family && (
+          <p className="ui-muted kiosk-note" data-testid="kiosk-no-controls">
+            This machine takes no commands from the console: use its own panel.
+          </p>
+        )}
+        {session && Extra && (
+          <div className="kiosk-extra">
+            <ErrorBoundary label={`${info.name} · controls`}>
+              <Suspense fallback={<Loading />}>
+                <Extra session={session} />
+              </Suspense>
+            </ErrorBoundary>
+          </div>
+        )}
+        <WakeNote status={wake} />
+      </div>
+    </TouchLockPolicy>
+  );
+}
+
+/** Pause and resume on one side, stop on the other, a control's width or more apart. */
+function KioskControls({ session, family }: { session: MachineSession; family: KioskFamily }) {
+  const role = useRole();
+  const { commands: runner, snapshot } = session.ctx;
+  const pick = (id: string): AnyCommand | null => session.commands[id] ?? null;
+  const pause = pick(family.pause);
+  const resume = pick(family.resume);
+  const stop = pick(family.stop);
+  const usable = [pause, resume, stop].filter(
+    (c): c is AnyCommand => c !== null && roleAtLeast(role, c.role),
+  );
+  if (usable.length === 0)
+    return (
+      <p className="ui-muted kiosk-note" data-testid="kiosk-no-controls">
+        Your role ({role}) has no controls on this machine.
+      </p>
+    );
+  const control = (
+    cmd: AnyCommand | null,
+    which: 'pause' | 'resume' | 'stop',
+    variant: 'secondary' | 'primary' | 'danger',
+  ) =>
+    cmd &&
+    roleAtLeast(role, cmd.role) && (
+      <div className={`kiosk-control kiosk-${which}`} data-kiosk={which}>
+        <CommandButton
+          runner={runner}
+          snapshot={snapshot}
+          command={cmd}
+          args={undefined as never}
+          variant={variant}
+        >
+          {cmd.label}
+        </CommandButton>
+      </div>
+    );
+  return (
+    <section className="kiosk-controls" aria-label="Job controls">
+      <div className="kiosk-job-controls">
+        {control(pause, 'pause', 'secondary')}
+        {control(resume, 'resume', 'primary')}
+      </div>
+      <div className="kiosk-stop-controls">{control(stop, 'stop', 'danger')}</div>
+    </section>
+  );
+}
+
+const WAKE_WORDS: Record<WakeStatus, string | null> = {
+  off: null,
+  waiting: null,
+  held: 'The screen stays on while the job runs.',
+  unsupported:
+    'This browser cannot keep the screen on (no Screen Wake Lock): set the tablet’s screen timeout instead.',
+  insecure:
+    'The screen cannot be kept on: the wake lock needs a secure connection (HTTPS, or localhost). Set the tablet’s screen timeout instead.',
+  refused: 'The browser refused to keep the screen on (power saving?): asking again in a while.',
+};
+
+function WakeNote({ status }: { status: WakeStatus }) {
+  const words = WAKE_WORDS[status];
+  if (!words) return null;
+  return (
+    <p className={`kiosk-wake small wake-${status}`} data-testid="kiosk-wake" data-status={status}>
+      {words}
+    </p>
+  );
+}
