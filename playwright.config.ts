@@ -27,6 +27,9 @@ export default defineConfig({
   use: {
     baseURL: `http://127.0.0.1:${port}`,
     trace: 'retain-on-failure',
+    // The installed app's service worker is tested in pwa.spec.ts (which allows it); elsewhere it
+    // would only add a precache download to every fresh browser context.
+    serviceWorkers: 'block',
     screenshot: 'only-on-failure',
     launchOptions,
   },

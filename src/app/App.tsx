@@ -3,12 +3,16 @@ import { useStore } from 'zustand';
 import { familyPages } from '../controllers';
 import { authStore } from '../fleet/auth';
 import { EmptyState, Loading } from '../ui';
-import { AlarmBanner, CriticalBanner, useBlockingAlarms } from './AlarmBanner';
-import { alarmFeed, startAlarmFeed } from './alarms/feed';
+import { lazyView, whenIdle } from '../fleet/lazy';
+import { alarmSummary } from './alarms/summary';
 import { AuthMenu } from './auth/UserControls';
 import { ErrorBoundary } from './ErrorBoundary';
 import { AlarmsPage, AuditPage, FleetPage, LoginPage, MachinePage } from './pages';
 import { Link, matchRoute, useLocation } from './router';
+
+// The alarm layer (banner, modal alert, the list it follows): loaded once the first screen shows.
+const AlarmModal = lazyView(() => import('./alarms/layer'), 'AlarmModal');
+const AlarmStrip = lazyView(() => import('./alarms/layer'), 'AlarmStrip');
 
 type ThemeChoice = 'system' | 'light' | 'dark';
 
@@ -34,13 +38,11 @@ export function App() {
   const mode = useStore(authStore, (s) => s.mode);
   const user = useStore(authStore, (s) => s.user);
   const openOnNetwork = useStore(authStore, (s) => s.openOnNetwork === true);
-  const blocking = useBlockingAlarms();
-  // The alarm centre's list, followed by every page (its banner is on every page).
-  useEffect(() => startAlarmFeed(), []);
-  const activeAlarms = useStore(
-    alarmFeed,
-    (s) => s.records?.filter((r) => r.clearedAt === null && r.ackAt === null).length ?? 0,
-  );
+  // The alarm centre on every page, from when the browser is first idle.
+  const [alarmsOn, setAlarmsOn] = useState(false);
+  useEffect(() => whenIdle(() => setAlarmsOn(true)), []);
+  const blocking = useStore(alarmSummary, (s) => s.blocking);
+  const activeAlarms = useStore(alarmSummary, (s) => s.unacknowledged);
 
   let body: React.ReactNode;
   switch (route.name) {
@@ -75,7 +77,7 @@ export function App() {
   return (
     <div className={kiosk ? 'app kiosk' : 'app'}>
       {/* A blocking alarm makes the whole page behind it inert: no click, no focus, no reading. */}
-      <div className="app-page" inert={blocking.length > 0} data-testid="app-page">
+      <div className="app-page" inert={blocking > 0} data-testid="app-page">
         <header className="topbar" hidden={kiosk}>
           <Link to="/" className="brand" aria-label="Shopdeck fleet">
             <img src="/favicon.svg" alt="" width={26} height={26} />
@@ -119,7 +121,13 @@ export function App() {
             <AuthMenu />
           </div>
         </header>
-        <CriticalBanner hideOn={route.name === 'machine' ? route.id : null} />
+        {alarmsOn && (
+          <ErrorBoundary label="Alarms">
+            <Suspense fallback={null}>
+              <AlarmStrip hideOn={route.name === 'machine' ? route.id : null} />
+            </Suspense>
+          </ErrorBoundary>
+        )}
         {mode === 'open' && (
           <div className="open-banner" role="note" data-testid="open-mode-banner">
             {openOnNetwork
@@ -142,7 +150,13 @@ export function App() {
           </main>
         )}
       </div>
-      <AlarmBanner blocking={blocking} />
+      {alarmsOn && (
+        <ErrorBoundary label="Alarms">
+          <Suspense fallback={null}>
+            <AlarmModal />
+          </Suspense>
+        </ErrorBoundary>
+      )}
     </div>
   );
 }

@@ -1,5 +1,5 @@
 // @vitest-environment happy-dom
-import { act, cleanup, fireEvent, render, screen, within } from '@testing-library/react';
+import { act, cleanup, fireEvent, render, screen, waitFor, within } from '@testing-library/react';
 import { afterEach, beforeAll, describe, expect, it, vi } from 'vitest';
 import { registerController } from '../controllers';
 import type { ControllerModule, MachineSession, SessionContext } from '../fleet/contract';
@@ -93,7 +93,7 @@ describe('machine sections', () => {
 });
 
 describe('blocking alarm', () => {
-  it('is a modal alert dialog named "Critical alarm"; the page behind is inert until it is acknowledged', () => {
+  it('is a modal alert dialog named "Critical alarm"; the page behind is inert until it is acknowledged', async () => {
     // The gateway: an empty alarm list, and the acknowledgement taken.
     const posted: unknown[] = [];
     vi.stubGlobal(
@@ -116,10 +116,11 @@ describe('blocking alarm', () => {
         ],
       }),
     );
-    const alarm = screen.getByRole('alertdialog', { name: 'Critical alarm' });
+    // The alarm layer loads once the browser is idle (its own chunk).
+    const alarm = await screen.findByRole('alertdialog', { name: 'Critical alarm' }, { timeout: 5000 });
     expect(alarm.tagName).toBe('DIALOG');
     expect(alarm.textContent).toContain('FLAME DETECTED');
-    expect(page.hasAttribute('inert')).toBe(true);
+    await waitFor(() => expect(page.hasAttribute('inert')).toBe(true));
     expect(page.contains(alarm)).toBe(false);
     // Read first: focus on the dialog, not on the acknowledgement.
     expect(document.activeElement).toBe(alarm);
@@ -135,6 +136,6 @@ describe('blocking alarm', () => {
     expect(posted).toEqual([['/api/alarms/ack', { machine: 'mill', key: 'flame' }]]);
     vi.unstubAllGlobals();
     expect(screen.queryByRole('alertdialog')).toBeNull();
-    expect(page.hasAttribute('inert')).toBe(false);
+    await waitFor(() => expect(page.hasAttribute('inert')).toBe(false));
   });
 });

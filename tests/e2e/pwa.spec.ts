@@ -45,6 +45,9 @@ async function controlled(page: Page): Promise<string> {
   return page.evaluate(() => navigator.serviceWorker.controller?.scriptURL ?? '');
 }
 
+// The service worker is what this spec is about (playwright.config.ts blocks it elsewhere).
+test.use({ serviceWorkers: 'allow' });
+
 test.describe('installable console', () => {
   test.beforeEach(async ({ request }) => {
     await resetSimulators(request);
