@@ -6,8 +6,9 @@ import { EmptyState, Loading } from '../ui';
 import { AlarmBanner, useBlockingAlarms } from './AlarmBanner';
 import { AuthMenu } from './auth/UserControls';
 import { ErrorBoundary } from './ErrorBoundary';
-import { AuditPage, FleetPage, LoginPage, MachinePage } from './pages';
+import { AuditPage, FleetPage, LoginPage, MachinePage, WallPage } from './pages';
 import { Link, matchRoute, useLocation } from './router';
+import { Shortcuts } from './shortcuts/lazy';
 
 type ThemeChoice = 'system' | 'light' | 'dark';
 
@@ -32,6 +33,16 @@ export function App() {
   const user = useStore(authStore, (s) => s.user);
   const openOnNetwork = useStore(authStore, (s) => s.openOnNetwork === true);
   const blocking = useBlockingAlarms();
+
+  // The wall screen (a TV): the page alone, read only — no top bar, no controls.
+  if (route.name === 'wall')
+    return (
+      <ErrorBoundary label="Wall screen">
+        <Suspense fallback={<Loading />}>
+          <WallPage />
+        </Suspense>
+      </ErrorBoundary>
+    );
 
   let body: React.ReactNode;
   switch (route.name) {
@@ -122,6 +133,10 @@ export function App() {
         )}
       </div>
       <AlarmBanner blocking={blocking} />
+      {/* Keyboard shortcuts (`?` lists them): code of their own, loaded after the first screen. */}
+      <Suspense fallback={null}>
+        <Shortcuts />
+      </Suspense>
     </div>
   );
 }

@@ -9,3 +9,4 @@ export const FleetPage = lazyView(() => import('./FleetPage'), 'FleetPage');
 export const MachinePage = lazyView(() => import('./MachinePage'), 'MachinePage');
 export const LoginPage = lazyView(() => import('./auth/LoginPage'), 'LoginPage');
 export const AuditPage = lazyView(() => import('./audit/AuditPage'), 'AuditPage');
+export const WallPage = lazyView(() => import('./wall/WallPage'), 'WallPage');

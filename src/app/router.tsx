@@ -62,6 +62,7 @@ export type Route =
   | { name: 'machine'; id: string; tab: string | null }
   | { name: 'audit' }
   | { name: 'login' }
+  | { name: 'wall' }
   | { name: 'family-page'; kind: string; page: string }
   | { name: 'not-found' };
 
@@ -86,6 +87,7 @@ export function matchRoute(pathname: string): Route {
   if (parts[0] === 'm' && parts[1]) return { name: 'machine', id: parts[1], tab: parts[2] ?? null };
   if (parts[0] === 'audit' && parts.length === 1) return { name: 'audit' };
   if (parts[0] === 'login' && parts.length === 1) return { name: 'login' };
+  if (parts[0] === 'wall' && parts.length === 1) return { name: 'wall' };
   if (parts.length === 2 && parts[0] && parts[1])
     return { name: 'family-page', kind: parts[0], page: parts[1] };
   return { name: 'not-found' };
