@@ -156,6 +156,7 @@ function WallCardBody({
       className={`wall-card activity-${s.activity}${alarmed ? ' in-alarm' : ''}${big ? ' big' : ''}${highlighted ? ' highlighted' : ''}`}
       data-testid={big ? 'wall-spotlight-card' : `wall-card-${info.id}`}
       data-activity={s.activity}
+      data-link={s.link}
       data-alarm={alarmed || undefined}
       aria-label={info.name}
     >
@@ -171,13 +172,16 @@ function WallCardBody({
         {info.simulated && ' · simulated'}
       </div>
       {alarm && alarmed ? (
-        <div
-          className={`wall-alarm tone-${alarm.severity === 'critical' ? 'bad' : 'warn'}`}
-          data-testid="wall-alarm"
-        >
-          {alarm.severity === 'critical' && <span aria-hidden="true">⚠ </span>}
-          {alarm.message}
-        </div>
+        <>
+          <div
+            className={`wall-alarm tone-${alarm.severity === 'critical' ? 'bad' : 'warn'}`}
+            data-testid="wall-alarm"
+          >
+            {alarm.severity === 'critical' && <span aria-hidden="true">⚠ </span>}
+            {alarm.message}
+          </div>
+          {big && <div className="wall-since">Since {formatTime(alarm.since)}</div>}
+        </>
       ) : (
         <div className="wall-label">{s.activityLabel}</div>
       )}
