@@ -1,3 +1,4 @@
+import AxeBuilder from '@axe-core/playwright';
 import { expect, test, type Page } from '@playwright/test';
 import { DEMO_MACHINES, resetSimulators, simulator } from './simulators';
 
@@ -26,6 +27,22 @@ async function runLaserJob(page: Page, request: Parameters<typeof simulator>[0])
   await expect(page.getByTestId('machine-label')).toContainText('press the button');
   await simulator(request, 'demo-xtool', 'world', 'button');
   await expect(page.getByTestId('machine-activity')).toHaveText('Running');
+}
+
+/** Serious and critical axe violations on the page now, in the light and the dark theme. */
+async function axeProblems(page: Page): Promise<string[]> {
+  const out: string[] = [];
+  for (const scheme of ['light', 'dark'] as const) {
+    await page.emulateMedia({ colorScheme: scheme });
+    const r = await new AxeBuilder({ page })
+      .withTags(['wcag2a', 'wcag2aa', 'wcag21a', 'wcag21aa', 'wcag22aa', 'best-practice'])
+      .analyze();
+    for (const v of r.violations)
+      if (v.impact === 'serious' || v.impact === 'critical')
+        out.push(`${scheme}: ${v.id}: ${v.nodes.map((n) => n.target.join(' ')).join(' | ')}`);
+  }
+  await page.emulateMedia({ colorScheme: null });
+  return out;
 }
 
 test.describe('desktop', () => {
@@ -243,5 +260,25 @@ test.describe('desktop', () => {
     await page.keyboard.press('g');
     await page.keyboard.press('f');
     await expect(page).toHaveURL(/\/wall$/);
+  });
+
+  test('axe finds nothing serious in the list view, the help sheet and the wall in alarm', async ({
+    page,
+    request,
+  }) => {
+    await page.goto('/?view=list&group=family&state=all');
+    await expect(page.getByTestId('row-demo-duet').getByTestId('row-link')).toHaveText('Online');
+    expect(await axeProblems(page)).toEqual([]);
+    await page.keyboard.press('?');
+    await expect(page.getByTestId('shortcuts-help')).toBeVisible();
+    expect(await axeProblems(page)).toEqual([]);
+    await page.keyboard.press('Escape');
+
+    await page.setViewportSize({ width: 1920, height: 1080 });
+    await page.goto('/wall');
+    await expect(page.getByTestId('wall-card-demo-g2core')).toHaveAttribute('data-link', 'online');
+    await simulator(request, 'demo-g2core', 'world', 'limit');
+    await expect(page.getByTestId('wall-spotlight')).toBeVisible();
+    expect(await axeProblems(page)).toEqual([]);
   });
 });
