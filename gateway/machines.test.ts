@@ -4,6 +4,7 @@ import {
   DEMO_FLEET,
   loadMachines,
   MachinesFileError,
+  machineInfo,
   normalizeFingerprint,
   secretForms,
   redact,
@@ -153,6 +154,53 @@ describe('machines file', () => {
     expect(() => loadMachines({ machinesFile: f, env: {}, cwd: d })).toThrow(
       /broken\.json[\s\S]*field "machines": missing/,
     );
+  });
+});
+
+describe('group', () => {
+  function load(machines: unknown[]) {
+    const d = dir();
+    const file = writeJson(path.join(d, 'm.json'), { machines });
+    return loadMachines({ machinesFile: file, env: {}, cwd: d }).machines;
+  }
+
+  it('is optional, trimmed, and reaches the browser in the machine info', () => {
+    const [a, b] = load([
+      { ...good, group: '  Bay 2 — lasers ' },
+      { ...good, id: 'laser-2' },
+    ]);
+    expect(a?.group).toBe('Bay 2 — lasers');
+    expect(b && 'group' in b).toBe(false);
+    expect(a && machineInfo(a)).toEqual({
+      id: 'laser-1',
+      name: 'Laser 1',
+      kind: 'xtool',
+      simulated: false,
+      group: 'Bay 2 — lasers',
+    });
+    // An old file (no group) gives the same info as before: no group key at all.
+    expect(b && machineInfo(b)).toEqual({ id: 'laser-2', name: 'Laser 1', kind: 'xtool', simulated: false });
+  });
+
+  it('accepts 60 characters, refuses 61, empty, blank, non-strings and control characters', () => {
+    expect(load([{ ...good, group: 'x'.repeat(60) }])[0]?.group).toHaveLength(60);
+    const cases: Array<[unknown, RegExp]> = [
+      ['x'.repeat(61), /field "group": too long \(at most 60 characters\)/],
+      ['', /field "group": must not be empty/],
+      ['   ', /field "group": must not be empty/],
+      [7, /field "group": must be a string/],
+      [null, /field "group": must be a string/],
+      ['Bay\n2', /field "group": must be printable text/],
+      ['Bay\u0007', /field "group": must be printable text/],
+      ['Bay\u200b2', /field "group": must be printable text/],
+      ['Bay\u20282', /field "group": must be printable text/],
+    ];
+    for (const [group, expected] of cases) {
+      const { file, message } = problemsOf([{ ...good, group }]);
+      expect(message).toContain(file);
+      expect(message).toMatch(/machines\[0\] \(id "laser-1"\)/);
+      expect(message).toMatch(expected);
+    }
   });
 });
 

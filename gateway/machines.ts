@@ -29,6 +29,8 @@ export interface MachineEntry {
    * trusts the first certificate it sees and pins it (`tls-pin.ts`).
    */
   tlsFingerprint?: string;
+  /** Where the machine stands (a bay, a room): the fleet page groups by it. */
+  group?: string;
 }
 
 export interface MachinesConfig {
@@ -55,6 +57,9 @@ export const DEMO_FLEET: ReadonlyArray<{ id: string; name: string; kind: Machine
   { id: 'demo-g2core', name: 'CNC router — g2core', kind: 'g2core' },
 ];
 
+/** Control and format characters, line and paragraph separators: not printable in a group name. */
+const UNPRINTABLE = /[\p{Cc}\p{Cf}\p{Zl}\p{Zp}]/u;
+
 const entrySchema = z.strictObject({
   id: z.string({ error: 'missing or not a string' }).regex(MACHINE_ID, 'must be 1 to 40 of a-z, 0-9 and "-"'),
   name: z
@@ -69,6 +74,13 @@ const entrySchema = z.strictObject({
   password: z.string({ error: 'must be a string' }).min(1, 'must not be empty').optional(),
   simulated: z.boolean({ error: 'must be true or false' }).optional(),
   tlsFingerprint: z.string({ error: 'must be a string' }).optional(),
+  group: z
+    .string({ error: 'must be a string' })
+    .trim()
+    .min(1, 'must not be empty')
+    .max(60, 'too long (at most 60 characters)')
+    .refine((v) => !UNPRINTABLE.test(v), 'must be printable text (no control characters or line breaks)')
+    .optional(),
 });
 
 const FINGERPRINT_COLONS = /^[0-9a-f]{2}(:[0-9a-f]{2}){31}$/i;
@@ -206,6 +218,7 @@ export function parseMachines(file: string, data: unknown, env: NodeJS.ProcessEn
       wsUrl,
       secrets,
       ...(tlsFingerprint ? { tlsFingerprint } : {}),
+      ...(e.group !== undefined ? { group: e.group } : {}),
     });
   });
   if (problems.length) throw new MachinesFileError(file, problems);
@@ -242,7 +255,13 @@ export function loadMachines(
 }
 
 export function machineInfo(m: MachineEntry): MachineInfo {
-  return { id: m.id, name: m.name, kind: m.kind, simulated: m.simulated };
+  return {
+    id: m.id,
+    name: m.name,
+    kind: m.kind,
+    simulated: m.simulated,
+    ...(m.group !== undefined ? { group: m.group } : {}),
+  };
 }
 
 /**

@@ -7,8 +7,9 @@ import { lazyView, whenIdle } from '../fleet/lazy';
 import { alarmSummary } from './alarms/summary';
 import { AuthMenu } from './auth/UserControls';
 import { ErrorBoundary } from './ErrorBoundary';
-import { AlarmsPage, AuditPage, FleetPage, LoginPage, MachinePage } from './pages';
+import { AlarmsPage, AuditPage, FleetPage, LoginPage, MachinePage, WallPage } from './pages';
 import { Link, matchRoute, useLocation } from './router';
+import { Shortcuts } from './shortcuts/lazy';
 
 // The alarm layer (banner, modal alert, the list it follows): loaded once the first screen shows.
 const AlarmModal = lazyView(() => import('./alarms/layer'), 'AlarmModal');
@@ -43,6 +44,16 @@ export function App() {
   useEffect(() => whenIdle(() => setAlarmsOn(true)), []);
   const blocking = useStore(alarmSummary, (s) => s.blocking);
   const activeAlarms = useStore(alarmSummary, (s) => s.unacknowledged);
+
+  // The wall screen (a TV): the page alone, read only — no top bar, no controls.
+  if (route.name === 'wall')
+    return (
+      <ErrorBoundary label="Wall screen">
+        <Suspense fallback={<Loading />}>
+          <WallPage />
+        </Suspense>
+      </ErrorBoundary>
+    );
 
   let body: React.ReactNode;
   switch (route.name) {
@@ -157,6 +168,10 @@ export function App() {
           </Suspense>
         </ErrorBoundary>
       )}
+      {/* Keyboard shortcuts (`?` lists them): code of their own, loaded after the first screen. */}
+      <Suspense fallback={null}>
+        <Shortcuts />
+      </Suspense>
     </div>
   );
 }

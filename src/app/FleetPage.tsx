@@ -1,17 +1,33 @@
+import { memo, Suspense, useId, useMemo } from 'react';
 import { useStore } from 'zustand';
 import { FAMILY_LABELS, useController } from '../controllers';
 import { getRuntime, fleetStore, type MachineRuntime } from '../fleet/fleet';
-import { preloadViews } from '../fleet/lazy';
+import { lazyView, preloadViews } from '../fleet/lazy';
 import { linkWords } from '../fleet/contract';
 import { useDerived, useSnapshot } from '../fleet/react';
 import { mostSevereAlarm, type Activity, type MachineInfo } from '../fleet/types';
-import { Badge, EmptyState, Notice, ProgressBar, formatDuration, formatPercent } from '../ui';
+import {
+  Badge,
+  Button,
+  EmptyState,
+  Loading,
+  Notice,
+  ProgressBar,
+  formatDuration,
+  formatPercent,
+} from '../ui';
 import { MachineAge } from './Age';
 import { ErrorBoundary } from './ErrorBoundary';
+import type { FleetGroup } from './fleet-views/arrange';
+import { FleetToolbar } from './fleet-views/FleetToolbar';
+import { useArrangement } from './fleet-views/live';
+import { useFleetPrefs } from './fleet-views/usePrefs';
 import { MachinePage } from './pages';
 import { Link } from './router';
 import { ACTIVITY_TONE, ACTIVITY_WORDS, LINK_TONE } from './status';
-import { useId, useMemo } from 'react';
+
+/** The dense list view: its own chunk (the tiles are the first screen). */
+const FleetList = lazyView(() => import('./fleet-views/FleetList'), 'FleetList');
 
 export function FleetPage() {
   const { machines, status, error } = useStore(fleetStore);
@@ -28,16 +44,67 @@ export function FleetPage() {
         No machines. Add them to <code>machines.json</code> (see the README), or sign in to see yours.
       </EmptyState>
     );
+  return <FleetBody machines={machines} />;
+}
+
+function FleetBody({ machines }: { machines: MachineInfo[] }) {
+  const [prefs, update] = useFleetPrefs();
+  const groups = useArrangement(machines, prefs);
+  const byId = useMemo(() => new Map(machines.map((m) => [m.id, m])), [machines]);
+  const shown = groups.reduce((n, g) => n + g.ids.length, 0);
   return (
-    <div className="fleet">
+    <div className="fleet" data-view={prefs.view}>
       <SummaryBar machines={machines} />
-      <div className="tiles" data-testid="fleet-tiles">
-        {machines.map((m) => (
-          <ErrorBoundary key={m.id} label={m.name} compact>
-            <MachineTile info={m} />
-          </ErrorBoundary>
-        ))}
-      </div>
+      <FleetToolbar prefs={prefs} update={update} machines={machines} shown={shown} />
+      {shown === 0 ? (
+        <EmptyState>
+          No machine matches this filter.{' '}
+          <Button onClick={() => update({ state: 'all', family: 'all', q: '' })}>Show all machines</Button>
+        </EmptyState>
+      ) : prefs.view === 'list' ? (
+        <Suspense fallback={<Loading />}>
+          <FleetList groups={groups} byId={byId} />
+        </Suspense>
+      ) : (
+        <div data-testid="fleet-tiles">
+          {groups.map((g) =>
+            g.label === null ? (
+              <Tiles key={g.key} ids={g.ids} byId={byId} />
+            ) : (
+              <TileGroup key={g.key} group={g} byId={byId} />
+            ),
+          )}
+        </div>
+      )}
+    </div>
+  );
+}
+
+function TileGroup({ group, byId }: { group: FleetGroup; byId: ReadonlyMap<string, MachineInfo> }) {
+  const id = useId();
+  return (
+    <section className="fleet-group" aria-labelledby={id} data-testid={`fleet-group-${group.key}`}>
+      <h2 id={id}>
+        {group.label} <span className="ui-muted">({group.ids.length})</span>
+      </h2>
+      <Tiles ids={group.ids} byId={byId} />
+    </section>
+  );
+}
+
+function Tiles({ ids, byId }: { ids: readonly string[]; byId: ReadonlyMap<string, MachineInfo> }) {
+  return (
+    <div className="tiles">
+      {ids.map((id) => {
+        const m = byId.get(id);
+        return (
+          m && (
+            <ErrorBoundary key={m.id} label={m.name} compact>
+              <MachineTile info={m} />
+            </ErrorBoundary>
+          )
+        );
+      })}
     </div>
   );
 }
@@ -92,11 +159,12 @@ function SummaryBar({ machines }: { machines: MachineInfo[] }) {
   );
 }
 
-export function MachineTile({ info }: { info: MachineInfo }) {
+/** Memo: a new order or grouping of the page does not re-render a tile (its machine's data does). */
+export const MachineTile = memo(function MachineTile({ info }: { info: MachineInfo }) {
   const rt = getRuntime(info.id);
   if (!rt) return null;
   return <TileBody info={info} rt={rt} />;
-}
+});
 
 function TileBody({ info, rt }: { info: MachineInfo; rt: MachineRuntime }) {
   const s = useSnapshot(rt, (x) => ({
@@ -139,6 +207,12 @@ function TileBody({ info, rt }: { info: MachineInfo; rt: MachineRuntime }) {
           </h3>
           <div className="ui-muted small">
             {FAMILY_LABELS[info.kind]}
+            {info.group && (
+              <span className="tile-group" data-testid="tile-group">
+                {' · '}
+                {info.group}
+              </span>
+            )}
             {info.simulated && (
               <Badge tone="warn" plain title="This machine is simulated: nothing real moves">
                 simulated

@@ -25,6 +25,7 @@ const MachinesAnswer = z.object({
       name: z.string(),
       kind: z.enum(MACHINE_KINDS),
       simulated: z.boolean(),
+      group: z.string().optional(),
     }),
   ),
 });

@@ -12,6 +12,8 @@ export interface MachineInfo {
   name: string;
   kind: MachineKind;
   simulated: boolean;
+  /** Where it stands (a bay, a room), from the machines file's optional `group`. */
+  group?: string;
 }
 
 export const ROLES = ['viewer', 'operator', 'supervisor'] as const;

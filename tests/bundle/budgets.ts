@@ -10,7 +10,8 @@ export const SIZE_BUDGETS_KIB: Array<{ screen: RegExp; kib: number }> = [
   { screen: /^shell$/, kib: 128 },
   { screen: /^family: /, kib: 28 },
   { screen: /^machine page: /, kib: 160 },
-  { screen: /^fleet page: /, kib: 218 },
+  // 218 → 222 with issue 17's fleet views (list, sort, filter, groups in the toolbar: +3.7 KiB).
+  { screen: /^fleet page: /, kib: 222 },
 ];
 
 /** The screens over their ceiling, in words (empty: all within budget). A screen without a ceiling is one too. */

@@ -10,7 +10,7 @@ import { TouchLockPolicy } from '../../ui/Lockable';
 import { MachineAge, RetryIn } from '../Age';
 import { ErrorBoundary } from '../ErrorBoundary';
 import { ACTIVITY_TONE, ACTIVITY_WORDS, LINK_TONE } from '../status';
-import { KIOSK_FAMILIES, type KioskFamily } from './families';
+import { KIOSK_FAMILIES, type KioskFamily } from './per-family';
 import { useScreenWakeLock, type WakeStatus } from './wake-lock';
 
 /** A job is under way: the screen stays on. */

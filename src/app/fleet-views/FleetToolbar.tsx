@@ -1,0 +1,111 @@
+import './fleet-views.css';
+import { useId } from 'react';
+import { FAMILY_LABELS } from '../../controllers';
+import type { MachineInfo } from '../../fleet/types';
+import { STATE_CLASS_WORDS } from './arrange';
+import type { FleetPrefs } from './prefs';
+
+const SORT_WORDS = {
+  file: 'Machines file order',
+  name: 'Name',
+  state: 'State (alarms first)',
+  family: 'Family',
+};
+
+const GROUP_WORDS = { none: 'No grouping', family: 'Family', group: 'Group (bay, room)' };
+
+/** A labelled select of one preference: `options` maps each value to its words. */
+function Choice<K extends 'sort' | 'state' | 'family' | 'groupBy'>(props: {
+  name: K;
+  label: string;
+  options: Record<string, string>;
+  prefs: FleetPrefs;
+  update: (patch: Partial<FleetPrefs>) => void;
+}) {
+  const id = useId();
+  const testId = `fleet-${props.name === 'groupBy' ? 'group' : props.name}`;
+  return (
+    <label className="fleet-field" htmlFor={id}>
+      <span>{props.label}</span>
+      <select
+        id={id}
+        className="ui-input"
+        value={props.prefs[props.name]}
+        // The value is one of the options; the preferences check it again (normalizePrefs).
+        onChange={(e) => props.update({ [props.name]: e.target.value })}
+        data-testid={testId}
+      >
+        {Object.entries(props.options).map(([value, words]) => (
+          <option key={value} value={value}>
+            {words}
+          </option>
+        ))}
+      </select>
+    </label>
+  );
+}
+
+/** View, sort, filters and grouping of the fleet page. */
+export function FleetToolbar(props: {
+  prefs: FleetPrefs;
+  update: (patch: Partial<FleetPrefs>) => void;
+  machines: readonly MachineInfo[];
+  shown: number;
+}) {
+  const { prefs, update, machines } = props;
+  const id = useId();
+  const families: Record<string, string> = { all: 'All families' };
+  // A family filter from a bookmark stays selectable even when no machine of it is left.
+  for (const k of [...machines.map((m) => m.kind), prefs.family])
+    if (k !== 'all') families[k] = FAMILY_LABELS[k];
+  const filtered = prefs.state !== 'all' || prefs.family !== 'all' || prefs.q.trim() !== '';
+  const common = { prefs, update };
+  return (
+    <div className="fleet-toolbar" role="group" aria-label="Fleet view" data-testid="fleet-toolbar">
+      <div className="fleet-view-switch" role="group" aria-label="View">
+        {(['grid', 'list'] as const).map((v) => (
+          <button
+            key={v}
+            type="button"
+            className={`ui-button ${prefs.view === v ? 'primary' : 'secondary'}`}
+            aria-pressed={prefs.view === v}
+            onClick={() => update({ view: v })}
+            data-testid={`view-${v}`}
+          >
+            {v === 'grid' ? 'Tiles' : 'List'}
+          </button>
+        ))}
+      </div>
+      <label className="fleet-field" htmlFor={id}>
+        <span>Name</span>
+        <input
+          id={id}
+          className="ui-input"
+          type="search"
+          placeholder="Filter by name"
+          value={prefs.q}
+          maxLength={80}
+          onChange={(e) => update({ q: e.target.value })}
+          data-testid="fleet-filter"
+        />
+      </label>
+      <Choice name="state" label="State" options={{ all: 'All states', ...STATE_CLASS_WORDS }} {...common} />
+      <Choice name="family" label="Family" options={families} {...common} />
+      <Choice name="sort" label="Sort" options={SORT_WORDS} {...common} />
+      <Choice name="groupBy" label="Group" options={GROUP_WORDS} {...common} />
+      {filtered && (
+        <div className="fleet-shown small" role="status" data-testid="fleet-shown">
+          {props.shown} of {machines.length} shown{' '}
+          <button
+            type="button"
+            className="ui-button secondary"
+            onClick={() => update({ state: 'all', family: 'all', q: '' })}
+            data-testid="fleet-clear"
+          >
+            Show all
+          </button>
+        </div>
+      )}
+    </div>
+  );
+}

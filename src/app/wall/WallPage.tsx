@@ -1,0 +1,235 @@
+import './wall.css';
+import { memo, useEffect, useMemo, useState } from 'react';
+import { useStore } from 'zustand';
+import { FAMILY_LABELS } from '../../controllers';
+import { authStore } from '../../fleet/auth';
+import { linkWords } from '../../fleet/contract';
+import { fleetStore, getRuntime, type MachineRuntime } from '../../fleet/fleet';
+import { useDerived, useNow, useSnapshot } from '../../fleet/react';
+import { mostSevereAlarm, type MachineInfo } from '../../fleet/types';
+import { Badge, ProgressBar, formatDuration, formatPercent, formatTime } from '../../ui';
+import { MachineAge } from '../Age';
+import { ACTIVITY_TONE, ACTIVITY_WORDS, LINK_TONE } from '../status';
+import { alarmFeed, startAlarmFeed } from '../alarms/feed';
+import {
+  inAlarmForWall,
+  nextSpotlight,
+  serverAlarmsForWall,
+  SPOTLIGHT_MS,
+  spotlightNow,
+  wallColumns,
+  type WallAlarm,
+} from './alarms';
+
+/**
+ * The wall screen (`/wall`): the whole fleet for a TV, large type, read only — no links, no
+ * buttons, no inputs, whoever is signed in. When machines are in alarm it shows them one after
+ * the other, each for `SPOTLIGHT_MS`, beside the fleet; with none it shows the fleet alone.
+ */
+export function WallPage() {
+  const mode = useStore(authStore, (s) => s.mode);
+  const user = useStore(authStore, (s) => s.user);
+  const { machines, status, error } = useStore(fleetStore);
+  if (mode === 'secured' && !user)
+    return (
+      <WallMessage>
+        The wall screen needs a signed-in session: sign in on this screen at /login, then open /wall.
+      </WallMessage>
+    );
+  if (status === 'loading') return <WallMessage>Loading the fleet…</WallMessage>;
+  if (status === 'error') return <WallMessage>{error}</WallMessage>;
+  if (machines.length === 0) return <WallMessage>No machines.</WallMessage>;
+  return <Wall machines={machines} />;
+}
+
+function WallMessage({ children }: { children: React.ReactNode }) {
+  return (
+    <div className="wall wall-message" data-testid="wall">
+      <p>{children}</p>
+    </div>
+  );
+}
+
+function Wall({ machines }: { machines: MachineInfo[] }) {
+  const rts = useMemo(
+    () => machines.map((m) => getRuntime(m.id)).filter((r): r is MachineRuntime => Boolean(r)),
+    [machines],
+  );
+  const sources = useMemo(() => rts.map((rt) => rt.snapshot), [rts]);
+  // The machines in alarm, in fleet order; React hears of it only when that list changes.
+  const localInAlarm = useDerived(
+    sources,
+    () => rts.filter((rt) => inAlarmForWall(rt.snapshot.getState().alarms)).map((rt) => rt.info.id),
+    (a, b) => a.length === b.length && a.every((id, i) => id === b[i]),
+  );
+  // And by the alarm centre's list (the server sees what no page watches).
+  useEffect(() => startAlarmFeed(), []);
+  const records = useStore(alarmFeed, (s) => s.records);
+  const serverAlarms = useMemo(() => serverAlarmsForWall(records), [records]);
+  const inAlarm = useMemo(
+    () => machines.filter((m) => localInAlarm.includes(m.id) || serverAlarms.has(m.id)).map((m) => m.id),
+    [machines, localInAlarm, serverAlarms],
+  );
+  const [chosen, setChosen] = useState<string | null>(null);
+  const spot = spotlightNow(inAlarm, chosen);
+  useEffect(() => {
+    if (inAlarm.length === 0) return;
+    const t = setInterval(
+      () => setChosen((c) => nextSpotlight(inAlarm, spotlightNow(inAlarm, c))),
+      SPOTLIGHT_MS,
+    );
+    return () => clearInterval(t);
+  }, [inAlarm]);
+  const spotInfo = spot ? machines.find((m) => m.id === spot) : undefined;
+  // The fleet fills the screen (or the part beside the machine in alarm) without scrolling.
+  const cols = wallColumns(machines.length, spotInfo ? 0.8 : 1.9);
+  const rows = Math.ceil(machines.length / cols);
+  return (
+    <div className={`wall${spotInfo ? ' has-spotlight' : ''}`} data-testid="wall">
+      <WallHeader
+        total={machines.length}
+        inAlarm={inAlarm.length}
+        spot={spotInfo ? inAlarm.indexOf(spotInfo.id) : -1}
+      />
+      <div className="wall-body">
+        {spotInfo && (
+          <section
+            className="wall-spotlight"
+            data-testid="wall-spotlight"
+            data-machine={spotInfo.id}
+            aria-label={`In alarm: ${spotInfo.name}`}
+          >
+            <WallCard key={spotInfo.id} info={spotInfo} big server={serverAlarms.get(spotInfo.id)} />
+          </section>
+        )}
+        <div
+          className="wall-grid"
+          style={{
+            gridTemplateColumns: `repeat(${cols}, minmax(0, 1fr))`,
+            gridTemplateRows: `repeat(${rows}, minmax(0, 1fr))`,
+          }}
+          data-testid="wall-grid"
+        >
+          {machines.map((m) => (
+            <WallCard
+              key={m.id}
+              info={m}
+              highlighted={m.id === spotInfo?.id}
+              server={serverAlarms.get(m.id)}
+            />
+          ))}
+        </div>
+      </div>
+    </div>
+  );
+}
+
+function WallHeader({ total, inAlarm, spot }: { total: number; inAlarm: number; spot: number }) {
+  const now = useNow(1000);
+  return (
+    <header className="wall-head">
+      <span className="wall-brand">
+        <img src="/favicon.svg" alt="" width={40} height={40} />
+        Shopdeck
+      </span>
+      <span data-testid="wall-count">{total} machines</span>
+      <span
+        className={inAlarm > 0 ? 'wall-alarm-count tone-bad' : 'wall-alarm-count'}
+        data-testid="wall-alarm-count"
+      >
+        {inAlarm === 0 ? 'No alarms' : inAlarm === 1 ? '1 in alarm' : `${inAlarm} in alarm`}
+        {inAlarm > 1 && spot >= 0 && ` · showing ${spot + 1} of ${inAlarm}`}
+      </span>
+      <time className="wall-clock" data-testid="wall-clock">
+        {formatTime(now)}
+      </time>
+    </header>
+  );
+}
+
+const WallCard = memo(function WallCard(props: {
+  info: MachineInfo;
+  big?: boolean;
+  highlighted?: boolean;
+  /** The alarm centre's alarm of this machine (when this page's own view has none). */
+  server?: WallAlarm | undefined;
+}) {
+  const rt = getRuntime(props.info.id);
+  if (!rt) return null;
+  return <WallCardBody {...props} rt={rt} />;
+});
+
+function WallCardBody({
+  info,
+  rt,
+  big,
+  highlighted,
+  server,
+}: {
+  info: MachineInfo;
+  rt: MachineRuntime;
+  big?: boolean;
+  highlighted?: boolean;
+  server?: WallAlarm | undefined;
+}) {
+  const s = useSnapshot(rt, (x) => ({
+    link: x.link,
+    activity: x.activity,
+    activityLabel: x.activityLabel,
+    job: x.job,
+    alarms: x.alarms,
+  }));
+  const local = inAlarmForWall(s.alarms) ? mostSevereAlarm(s.alarms.filter((a) => !a.acknowledged)) : null;
+  const alarm = local ?? server ?? null;
+  const alarmed = alarm !== null;
+  return (
+    <article
+      className={`wall-card activity-${s.activity}${alarmed ? ' in-alarm' : ''}${big ? ' big' : ''}${highlighted ? ' highlighted' : ''}`}
+      data-testid={big ? 'wall-spotlight-card' : `wall-card-${info.id}`}
+      data-activity={s.activity}
+      data-link={s.link}
+      data-alarm={alarmed || undefined}
+      aria-label={info.name}
+    >
+      <div className="wall-card-head">
+        <h2 className="wall-name">{info.name}</h2>
+        <Badge tone={ACTIVITY_TONE[s.activity]} testId="wall-activity">
+          {ACTIVITY_WORDS[s.activity]}
+        </Badge>
+      </div>
+      <div className="wall-sub">
+        {FAMILY_LABELS[info.kind]}
+        {info.group && ` · ${info.group}`}
+        {info.simulated && ' · simulated'}
+      </div>
+      {alarm ? (
+        <>
+          <div
+            className={`wall-alarm tone-${alarm.severity === 'critical' ? 'bad' : 'warn'}`}
+            data-testid="wall-alarm"
+          >
+            {alarm.severity === 'critical' && <span aria-hidden="true">⚠ </span>}
+            {alarm.message}
+          </div>
+          {big && <div className="wall-since">Since {formatTime(alarm.since)}</div>}
+        </>
+      ) : (
+        <div className="wall-label">{s.activityLabel}</div>
+      )}
+      {s.job && (
+        <div className="wall-job">
+          <div className="wall-job-name">{s.job.name ?? 'Job'}</div>
+          <ProgressBar value={s.job.progress} label={`${info.name} job progress`} />
+          <div className="wall-job-times">
+            <span>{formatPercent(s.job.progress)}</span>
+            {s.job.remaining !== null && <span>{formatDuration(s.job.remaining)} left</span>}
+          </div>
+        </div>
+      )}
+      <div className="wall-foot">
+        {s.link !== 'online' && <Badge tone={LINK_TONE[s.link]}>{linkWords(s.link)}</Badge>}
+        <MachineAge rt={rt} testId="wall-age" />
+      </div>
+    </article>
+  );
+}
