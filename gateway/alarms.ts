@@ -2,6 +2,7 @@ import { mkdirSync, readFileSync, renameSync, writeFileSync } from 'node:fs';
 import { rename, writeFile } from 'node:fs/promises';
 import { join } from 'node:path';
 import { z } from 'zod';
+import { alarmRecordSchema, type AlarmRecord } from '../src/fleet/alarm-record';
 import type { WatchAlarm, WatchSummary } from '../src/fleet/contract';
 import type { AlarmSeverity } from '../src/fleet/types';
 import type { Logger } from './log';
@@ -16,22 +17,7 @@ import { Webhook } from './webhook';
  * its own. Kept in `alarms.json` in the data folder (written atomically), bounded.
  */
 
-export interface AlarmRecord {
-  id: string;
-  machine: string;
-  machineName: string;
-  family: string;
-  /** The condition (the family's alarm id, `xtool-flame`); one open record per machine and key. */
-  key: string;
-  severity: AlarmSeverity;
-  text: string;
-  /** Blocks every page until a person acknowledges it (an xTool flame). */
-  blocking: boolean;
-  since: number;
-  clearedAt: number | null;
-  ackBy: string | null;
-  ackAt: number | null;
-}
+export type { AlarmRecord };
 
 export interface AlarmMachine {
   id: string;
@@ -72,24 +58,10 @@ const EARLY_ACK_MS = 60_000;
 const SEVERITY_RANK: Record<AlarmSeverity, number> = { critical: 2, warning: 1, info: 0 };
 const MAX_TEXT = 500;
 
-const recordSchema = z.object({
-  id: z.string().max(40),
-  machine: z.string().max(100),
-  machineName: z.string().max(200),
-  family: z.string().max(40),
-  key: z.string().max(200),
-  severity: z.enum(['critical', 'warning', 'info']),
-  text: z.string().max(MAX_TEXT),
-  blocking: z.boolean().default(false),
-  since: z.number(),
-  clearedAt: z.number().nullable(),
-  ackBy: z.string().max(200).nullable(),
-  ackAt: z.number().nullable(),
-});
 const fileSchema = z.object({
   version: z.literal(1),
   seq: z.number().int().nonnegative(),
-  records: z.array(recordSchema),
+  records: z.array(alarmRecordSchema),
 });
 
 /** Newest and most severe first: severity, then active before cleared, then newest. */

@@ -24,7 +24,8 @@ import { useArrangement } from './fleet-views/live';
 import { useFleetPrefs } from './fleet-views/usePrefs';
 import { MachinePage } from './pages';
 import { Link } from './router';
-import { ACTIVITY_TONE, ACTIVITY_WORDS, LINK_TONE } from './status';
+import { ACTIVITY_TONE, ACTIVITY_WORDS, cardFields, LINK_TONE } from './status';
+import { useRuntimesOf } from './runtimes';
 
 /** The dense list view: its own chunk (the tiles are the first screen). */
 const FleetList = lazyView(() => import('./fleet-views/FleetList'), 'FleetList');
@@ -129,11 +130,7 @@ const SUMMARY: Array<{
 
 /** Counts by activity. Subscribes to each machine's snapshot for two fields only. */
 function SummaryBar({ machines }: { machines: MachineInfo[] }) {
-  const rts = useMemo(
-    () => machines.map((m) => getRuntime(m.id)).filter((r): r is MachineRuntime => Boolean(r)),
-    [machines],
-  );
-  const sources = useMemo(() => rts.map((rt) => rt.snapshot), [rts]);
+  const { rts, sources } = useRuntimesOf(machines);
   const counts = useDerived(
     sources,
     () => {
@@ -167,14 +164,7 @@ export const MachineTile = memo(function MachineTile({ info }: { info: MachineIn
 });
 
 function TileBody({ info, rt }: { info: MachineInfo; rt: MachineRuntime }) {
-  const s = useSnapshot(rt, (x) => ({
-    link: x.link,
-    activity: x.activity,
-    activityLabel: x.activityLabel,
-    job: x.job,
-    alarms: x.alarms,
-    problem: x.problem,
-  }));
+  const s = useSnapshot(rt, cardFields);
   // Undefined while the family's code loads (the tile shows its state meanwhile).
   const mod = useController(info.kind);
   const alarm = mostSevereAlarm(s.alarms.filter((a) => !a.acknowledged));

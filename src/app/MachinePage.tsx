@@ -6,9 +6,10 @@ import { fleetStore, getRuntime, showDetail, type MachineRuntime } from '../flee
 import { lazyView, preloadViews, whenIdle } from '../fleet/lazy';
 import { LogView, useRole, useSnapshot } from '../fleet/react';
 import { roleAtLeast } from '../fleet/types';
-import { Badge, EmptyState, Loading, Notice, Panel } from '../ui';
-import { MachineAge, RetryIn } from './Age';
+import { Badge, EmptyState, Loading, Notice } from '../ui';
+import { MachineAge } from './Age';
 import { ErrorBoundary } from './ErrorBoundary';
+import { MachineProblems } from './MachineProblems';
 import { Link } from './router';
 import { ACTIVITY_TONE, ACTIVITY_WORDS, LINK_TONE } from './status';
 
@@ -121,26 +122,7 @@ function MachinePageBody({ rt, tab }: { rt: MachineRuntime; tab: string | null }
           Nothing real moves.
         </div>
       )}
-      {s.problem && s.link !== 'online' && (
-        <Notice
-          tone={s.link === 'protocol-error' ? 'bad' : 'warn'}
-          title={`${linkWords(s.link)}${s.problem.path ? ` (at ${s.problem.path})` : ''}`}
-          testId="link-problem"
-        >
-          {s.problem.message}
-          <RetryIn at={s.retryAt} />
-        </Notice>
-      )}
-      {s.link === 'needs-login' && LoginForm && session && (
-        <Panel title="Log in to this machine">
-          <LoginForm session={session} />
-        </Panel>
-      )}
-      {rt.error && (
-        <Notice tone="bad" title="This machine cannot be shown">
-          {rt.error}
-        </Notice>
-      )}
+      <MachineProblems rt={rt} LoginForm={LoginForm} showPath />
       {/* The sections are URLs (bookmarkable): links, the current one marked aria-current. */}
       <nav className="tabs" aria-label="Machine sections">
         {tabs.map((t) => (

@@ -1,5 +1,5 @@
 import type { Tone } from '../ui';
-import type { Activity, LinkState } from '../fleet/types';
+import type { Activity, LinkState, MachineSnapshot } from '../fleet/types';
 
 export const ACTIVITY_WORDS: Record<Activity, string> = {
   offline: 'Offline',
@@ -34,3 +34,15 @@ export const LINK_TONE: Record<LinkState, Tone> = {
 
 /** Data older than this is shown as stale. */
 export const STALE_MS = 10_000;
+
+/** What a machine's card shows (fleet tile, list row, kiosk, wall): the fields a card re-renders on. */
+export function cardFields(x: MachineSnapshot) {
+  return {
+    link: x.link,
+    activity: x.activity,
+    activityLabel: x.activityLabel,
+    job: x.job,
+    alarms: x.alarms,
+    problem: x.problem,
+  };
+}

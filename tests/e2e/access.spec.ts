@@ -2,8 +2,7 @@ import { mkdtempSync, readFileSync, rmSync, writeFileSync } from 'node:fs';
 import { tmpdir } from 'node:os';
 import { join } from 'node:path';
 import { expect, test, type Browser, type Page } from '@playwright/test';
-import bcrypt from 'bcryptjs';
-import { Children, freePort, waitFor } from './own-server';
+import { Children, freePort, waitFor, writeUsersFile } from './own-server';
 
 /**
  * Access control end to end, through the real gateway (vite preview) with a users file, against
@@ -49,17 +48,7 @@ test.describe('access control', () => {
       }
     }
     if (!simUrl) throw new Error('npm run sim did not write its machines file');
-    writeFileSync(
-      join(dir, 'users.json'),
-      JSON.stringify({
-        users: Object.entries(USERS).map(([name, u]) => ({
-          name,
-          role: u.role,
-          machines: null,
-          passwordHash: bcrypt.hashSync(u.password, 4),
-        })),
-      }),
-    );
+    writeUsersFile(join(dir, 'users.json'), USERS);
     const port = await freePort();
     base = `http://127.0.0.1:${port}`;
     const outDir = process.env.SHOPDECK_E2E_OUTDIR ? ['--outDir', process.env.SHOPDECK_E2E_OUTDIR] : [];

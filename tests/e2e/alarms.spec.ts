@@ -1,11 +1,10 @@
-import { mkdtempSync, rmSync, writeFileSync } from 'node:fs';
+import { mkdtempSync, rmSync } from 'node:fs';
 import http from 'node:http';
 import type { AddressInfo } from 'node:net';
 import { tmpdir } from 'node:os';
 import { join } from 'node:path';
 import { expect, test, type Browser, type Page } from '@playwright/test';
-import bcrypt from 'bcryptjs';
-import { Children, freePort, waitFor } from './own-server';
+import { Children, freePort, waitFor, writeUsersFile } from './own-server';
 
 /**
  * The alarm centre end to end, on a console of its own (the production server with a users file,
@@ -44,17 +43,7 @@ test.describe('alarm centre', () => {
     });
     await new Promise<void>((r) => receiver?.listen(0, '127.0.0.1', () => r()));
     const hookUrl = `http://127.0.0.1:${(receiver.address() as AddressInfo).port}/hooks/floor-token`;
-    writeFileSync(
-      join(dir, 'users.json'),
-      JSON.stringify({
-        users: Object.entries(USERS).map(([name, u]) => ({
-          name,
-          role: u.role,
-          machines: null,
-          passwordHash: bcrypt.hashSync(u.password, 4),
-        })),
-      }),
-    );
+    writeUsersFile(join(dir, 'users.json'), USERS);
     const port = await freePort();
     base = `http://127.0.0.1:${port}`;
     children.start(['--import', 'tsx', 'server/main.ts', '--port', String(port), '--host', '127.0.0.1'], {

@@ -1,5 +1,7 @@
 import { spawn, type ChildProcess } from 'node:child_process';
+import { writeFileSync } from 'node:fs';
 import { createServer } from 'node:net';
+import bcrypt from 'bcryptjs';
 
 /**
  * For specs that run a console of their own (a users file, their own machines, their own
@@ -58,4 +60,22 @@ export class Children {
       }
     }
   }
+}
+
+/** A users file for the spec's own console: every user may use every machine. */
+export function writeUsersFile(
+  file: string,
+  users: Readonly<Record<string, { role: string; password: string }>>,
+): void {
+  writeFileSync(
+    file,
+    JSON.stringify({
+      users: Object.entries(users).map(([name, u]) => ({
+        name,
+        role: u.role,
+        machines: null,
+        passwordHash: bcrypt.hashSync(u.password, 4),
+      })),
+    }),
+  );
 }

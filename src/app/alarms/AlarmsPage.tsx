@@ -312,6 +312,38 @@ function SendOn() {
   );
 }
 
+/** One filter of the list: a labelled select over fixed values. */
+function FilterSelect<V extends string>(props: {
+  label: string;
+  value: V;
+  onChange: (v: V) => void;
+  options: ReadonlyArray<readonly [V, string]>;
+  testId: string;
+}) {
+  return (
+    <Field label={props.label}>
+      {(id) => (
+        <select
+          id={id}
+          className="ui-input"
+          value={props.value}
+          onChange={(e) => {
+            const v = props.options.find(([x]) => x === e.target.value);
+            if (v) props.onChange(v[0]);
+          }}
+          data-testid={props.testId}
+        >
+          {props.options.map(([v, words]) => (
+            <option key={v} value={v}>
+              {words}
+            </option>
+          ))}
+        </select>
+      )}
+    </Field>
+  );
+}
+
 export function AlarmsPage() {
   const records = useStore(alarmFeed, (s) => s.records);
   const error = useStore(alarmFeed, (s) => s.error);
@@ -339,73 +371,49 @@ export function AlarmsPage() {
           An alarm clears itself when the machine clears it and stays in this list; a person acknowledges it.
         </p>
         <div className="ui-row alarm-filters" role="group" aria-label="Filters">
-          <Field label="Machine">
-            {(id) => (
-              <select
-                id={id}
-                className="ui-input"
-                value={filters.machine}
-                onChange={(e) => set('machine', e.target.value)}
-                data-testid="alarm-filter-machine"
-              >
-                <option value="">All machines</option>
-                {machineOptions.map(([id2, name]) => (
-                  <option key={id2} value={id2}>
-                    {name}
-                  </option>
-                ))}
-              </select>
-            )}
-          </Field>
-          <Field label="Family">
-            {(id) => (
-              <select
-                id={id}
-                className="ui-input"
-                value={filters.family}
-                onChange={(e) => set('family', e.target.value)}
-                data-testid="alarm-filter-family"
-              >
-                <option value="">All families</option>
-                {families.map((f) => (
-                  <option key={f} value={f}>
-                    {FAMILY_LABELS[f as keyof typeof FAMILY_LABELS] ?? f}
-                  </option>
-                ))}
-              </select>
-            )}
-          </Field>
-          <Field label="Severity">
-            {(id) => (
-              <select
-                id={id}
-                className="ui-input"
-                value={filters.severity}
-                onChange={(e) => set('severity', e.target.value as AlarmFilters['severity'])}
-                data-testid="alarm-filter-severity"
-              >
-                <option value="">All severities</option>
-                <option value="critical">Critical</option>
-                <option value="warning">Warning</option>
-                <option value="info">Info</option>
-              </select>
-            )}
-          </Field>
-          <Field label="Show">
-            {(id) => (
-              <select
-                id={id}
-                className="ui-input"
-                value={filters.state}
-                onChange={(e) => set('state', e.target.value as StateFilter)}
-                data-testid="alarm-filter-state"
-              >
-                <option value="all">Active and cleared</option>
-                <option value="active">Active only</option>
-                <option value="unacknowledged">Not acknowledged</option>
-              </select>
-            )}
-          </Field>
+          <FilterSelect
+            label="Machine"
+            value={filters.machine}
+            onChange={(v) => set('machine', v)}
+            testId="alarm-filter-machine"
+            options={[['', 'All machines'], ...machineOptions]}
+          />
+          <FilterSelect
+            label="Family"
+            value={filters.family}
+            onChange={(v) => set('family', v)}
+            testId="alarm-filter-family"
+            options={[
+              ['', 'All families'],
+              ...families.map((f): [string, string] => [
+                f,
+                FAMILY_LABELS[f as keyof typeof FAMILY_LABELS] ?? f,
+              ]),
+            ]}
+          />
+          <FilterSelect
+            label="Severity"
+            value={filters.severity}
+            onChange={(v) => set('severity', v)}
+            testId="alarm-filter-severity"
+            options={[
+              ['', 'All severities'],
+              ['critical', 'Critical'],
+              ['warning', 'Warning'],
+              ['info', 'Info'],
+            ]}
+          />
+          <FilterSelect
+            label="Show"
+            value={filters.state}
+            onChange={(v) => set('state', v)}
+            testId="alarm-filter-state"
+            options={[
+              ['all', 'Active and cleared'],
+              ['active', 'Active only'],
+              ['unacknowledged', 'Not acknowledged'],
+            ]}
+          />
           {filters !== NO_FILTERS && <Button onClick={() => setFilters(NO_FILTERS)}>Clear filters</Button>}
         </div>
         {error && (

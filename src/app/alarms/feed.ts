@@ -1,5 +1,6 @@
 import { z } from 'zod';
 import { createStore } from 'zustand/vanilla';
+import { alarmRecordSchema, type AlarmRecord } from '../../fleet/alarm-record';
 import { authStore } from '../../fleet/auth';
 import { allRuntimes } from '../../fleet/fleet';
 import { CONSOLE_HEADERS } from '../../fleet/origin';
@@ -11,25 +12,11 @@ import { CONSOLE_HEADERS } from '../../fleet/origin';
  * screen, and the last good list stays.
  */
 
-const recordSchema = z.object({
-  id: z.string().max(40),
-  machine: z.string().max(100),
-  machineName: z.string().max(200),
-  family: z.string().max(40),
-  key: z.string().max(200),
-  severity: z.enum(['critical', 'warning', 'info']),
-  text: z.string().max(2000),
-  blocking: z.boolean().default(false),
-  since: z.number(),
-  clearedAt: z.number().nullable(),
-  ackBy: z.string().max(200).nullable(),
-  ackAt: z.number().nullable(),
-});
-export type AlarmRecord = z.infer<typeof recordSchema>;
+export type { AlarmRecord };
 
 const answerSchema = z.union([
   z.object({ version: z.number(), unchanged: z.literal(true) }),
-  z.object({ version: z.number(), alarms: z.array(recordSchema).max(5000) }),
+  z.object({ version: z.number(), alarms: z.array(alarmRecordSchema).max(5000) }),
 ]);
 
 export interface AlarmFeedState {

@@ -8,7 +8,7 @@ import { mostSevereAlarm, type MachineInfo } from '../../fleet/types';
 import { Badge, ProgressBar, formatPercent } from '../../ui';
 import { MachineAge } from '../Age';
 import { Link } from '../router';
-import { ACTIVITY_TONE, ACTIVITY_WORDS, LINK_TONE } from '../status';
+import { ACTIVITY_TONE, ACTIVITY_WORDS, cardFields, LINK_TONE } from '../status';
 import type { FleetGroup } from './arrange';
 
 const COLUMNS = ['Machine', 'Family', 'State', 'Job', 'Alarms', 'Link', 'Data'] as const;
@@ -68,14 +68,7 @@ const ListRow = memo(function ListRow({ info }: { info: MachineInfo }) {
 });
 
 function RowBody({ info, rt }: { info: MachineInfo; rt: MachineRuntime }) {
-  const s = useSnapshot(rt, (x) => ({
-    link: x.link,
-    activity: x.activity,
-    activityLabel: x.activityLabel,
-    job: x.job,
-    alarms: x.alarms,
-    problem: x.problem,
-  }));
+  const s = useSnapshot(rt, cardFields);
   const open = s.alarms.filter((a) => !a.acknowledged);
   const worst = mostSevereAlarm(open);
   return (

@@ -5,11 +5,12 @@ import { linkWords, type MachineSession, type TabProps } from '../../fleet/contr
 import { showDetail, type MachineRuntime } from '../../fleet/fleet';
 import { CommandButton, useRole, useSnapshot } from '../../fleet/react';
 import { mostSevereAlarm, roleAtLeast, type Activity } from '../../fleet/types';
-import { Badge, Loading, Notice, Panel, ProgressBar, formatDuration, formatPercent } from '../../ui';
+import { Badge, Loading, ProgressBar, formatDuration, formatPercent } from '../../ui';
 import { TouchLockPolicy } from '../../ui/Lockable';
-import { MachineAge, RetryIn } from '../Age';
+import { MachineAge } from '../Age';
 import { ErrorBoundary } from '../ErrorBoundary';
-import { ACTIVITY_TONE, ACTIVITY_WORDS, LINK_TONE } from '../status';
+import { MachineProblems } from '../MachineProblems';
+import { ACTIVITY_TONE, ACTIVITY_WORDS, cardFields, LINK_TONE } from '../status';
 import { KIOSK_FAMILIES, type KioskFamily } from './per-family';
 import { useScreenWakeLock, type WakeStatus } from './wake-lock';
 
@@ -26,12 +27,7 @@ export function KioskPage({ rt }: { rt: MachineRuntime }) {
   const info = rt.info;
   const mod = useController(info.kind);
   const s = useSnapshot(rt, (x) => ({
-    link: x.link,
-    activity: x.activity,
-    activityLabel: x.activityLabel,
-    job: x.job,
-    alarms: x.alarms,
-    problem: x.problem,
+    ...cardFields(x),
     identity: x.identity,
     retryAt: x.retryAt,
   }));
@@ -71,26 +67,7 @@ export function KioskPage({ rt }: { rt: MachineRuntime }) {
             Simulated machine: nothing real moves.
           </div>
         )}
-        {s.problem && s.link !== 'online' && (
-          <Notice
-            tone={s.link === 'protocol-error' ? 'bad' : 'warn'}
-            title={linkWords(s.link)}
-            testId="link-problem"
-          >
-            {s.problem.message}
-            <RetryIn at={s.retryAt} />
-          </Notice>
-        )}
-        {s.link === 'needs-login' && LoginForm && session && (
-          <Panel title="Log in to this machine">
-            <LoginForm session={session} />
-          </Panel>
-        )}
-        {rt.error && (
-          <Notice tone="bad" title="This machine cannot be shown">
-            {rt.error}
-          </Notice>
-        )}
+        <MachineProblems rt={rt} LoginForm={LoginForm} />
 
         <section className="kiosk-state" aria-label="State">
           <div className={`kiosk-activity tone-${ACTIVITY_TONE[s.activity]}`} data-testid="kiosk-activity">

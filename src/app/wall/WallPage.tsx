@@ -9,7 +9,8 @@ import { useDerived, useNow, useSnapshot } from '../../fleet/react';
 import { mostSevereAlarm, type MachineInfo } from '../../fleet/types';
 import { Badge, ProgressBar, formatDuration, formatPercent, formatTime } from '../../ui';
 import { MachineAge } from '../Age';
-import { ACTIVITY_TONE, ACTIVITY_WORDS, LINK_TONE } from '../status';
+import { ACTIVITY_TONE, ACTIVITY_WORDS, cardFields, LINK_TONE } from '../status';
+import { useRuntimesOf } from '../runtimes';
 import { alarmFeed, startAlarmFeed } from '../alarms/feed';
 import {
   inAlarmForWall,
@@ -51,11 +52,7 @@ function WallMessage({ children }: { children: React.ReactNode }) {
 }
 
 function Wall({ machines }: { machines: MachineInfo[] }) {
-  const rts = useMemo(
-    () => machines.map((m) => getRuntime(m.id)).filter((r): r is MachineRuntime => Boolean(r)),
-    [machines],
-  );
-  const sources = useMemo(() => rts.map((rt) => rt.snapshot), [rts]);
+  const { rts, sources } = useRuntimesOf(machines);
   // The machines in alarm, in fleet order; React hears of it only when that list changes.
   const localInAlarm = useDerived(
     sources,
@@ -172,13 +169,7 @@ function WallCardBody({
   highlighted?: boolean;
   server?: WallAlarm | undefined;
 }) {
-  const s = useSnapshot(rt, (x) => ({
-    link: x.link,
-    activity: x.activity,
-    activityLabel: x.activityLabel,
-    job: x.job,
-    alarms: x.alarms,
-  }));
+  const s = useSnapshot(rt, cardFields);
   const local = inAlarmForWall(s.alarms) ? mostSevereAlarm(s.alarms.filter((a) => !a.acknowledged)) : null;
   const alarm = local ?? server ?? null;
   const alarmed = alarm !== null;
