@@ -271,8 +271,11 @@ export function AlarmBanner({ blocking }: { blocking: Blocking[] }) {
   );
 }
 
-/** The banner of the other critical alarms, at the top of every page. */
-export function CriticalBanner({ hideOn }: { hideOn?: string | null }) {
+/**
+ * The banner of the other critical alarms, at the top of every page. `kiosk`: no way out of the
+ * page (machine names as words, no link to the alarm centre).
+ */
+export function CriticalBanner({ hideOn, kiosk = false }: { hideOn?: string | null; kiosk?: boolean }) {
   const canAck = useCan('operator');
   const critical = useCriticalAlarms();
   const [error, setError] = useState<string | null>(null);
@@ -288,7 +291,7 @@ export function CriticalBanner({ hideOn }: { hideOn?: string | null }) {
         >
           <span className="critical-what">
             <span aria-hidden="true">⚠</span>{' '}
-            {hideOn === b.machineId ? (
+            {hideOn === b.machineId || kiosk ? (
               <strong>{b.machineName}</strong>
             ) : (
               <Link to={`/m/${encodeURIComponent(b.machineId)}`}>{b.machineName}</Link>
@@ -304,7 +307,7 @@ export function CriticalBanner({ hideOn }: { hideOn?: string | null }) {
       ))}
       {error && <p className="alarm-error">{error}</p>}
       <div className="critical-foot">
-        <Link to="/alarms">All alarms</Link>
+        {!kiosk && <Link to="/alarms">All alarms</Link>}
         <SoundToggle />
       </div>
     </div>

@@ -135,7 +135,7 @@ export function App() {
         {alarmsOn && (
           <ErrorBoundary label="Alarms">
             <Suspense fallback={null}>
-              <AlarmStrip hideOn={route.name === 'machine' ? route.id : null} />
+              <AlarmStrip hideOn={route.name === 'machine' ? route.id : null} kiosk={kiosk} />
             </Suspense>
           </ErrorBoundary>
         )}

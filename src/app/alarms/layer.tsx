@@ -23,6 +23,6 @@ export function AlarmModal() {
 }
 
 /** The banner of critical alarms that do not block, at the top of every page. */
-export function AlarmStrip({ hideOn }: { hideOn: string | null }) {
-  return <CriticalBanner hideOn={hideOn} />;
+export function AlarmStrip({ hideOn, kiosk }: { hideOn: string | null; kiosk: boolean }) {
+  return <CriticalBanner hideOn={hideOn} kiosk={kiosk} />;
 }

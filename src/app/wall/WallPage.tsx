@@ -1,5 +1,5 @@
 import './wall.css';
-import { memo, useEffect, useMemo, useState } from 'react';
+import { memo, useEffect, useMemo, useRef, useState } from 'react';
 import { useStore } from 'zustand';
 import { FAMILY_LABELS } from '../../controllers';
 import { authStore } from '../../fleet/auth';
@@ -57,16 +57,21 @@ function Wall({ machines }: { machines: MachineInfo[] }) {
   const localInAlarm = useDerived(
     sources,
     () => rts.filter((rt) => inAlarmForWall(rt.snapshot.getState().alarms)).map((rt) => rt.info.id),
-    (a, b) => a.length === b.length && a.every((id, i) => id === b[i]),
+    sameIds,
   );
   // And by the alarm centre's list (the server sees what no page watches).
   useEffect(() => startAlarmFeed(), []);
   const records = useStore(alarmFeed, (s) => s.records);
   const serverAlarms = useMemo(() => serverAlarmsForWall(records), [records]);
-  const inAlarm = useMemo(
+  const combined = useMemo(
     () => machines.filter((m) => localInAlarm.includes(m.id) || serverAlarms.has(m.id)).map((m) => m.id),
     [machines, localInAlarm, serverAlarms],
   );
+  // The same machines are the same list: the spotlight's timer runs on while the list only changes
+  // elsewhere (a new answer of the alarm list about other machines).
+  const kept = useRef(combined);
+  if (!sameIds(kept.current, combined)) kept.current = combined;
+  const inAlarm = kept.current;
   const [chosen, setChosen] = useState<string | null>(null);
   const spot = spotlightNow(inAlarm, chosen);
   useEffect(() => {
@@ -223,4 +228,8 @@ function WallCardBody({
       </div>
     </article>
   );
+}
+
+function sameIds(a: readonly string[], b: readonly string[]): boolean {
+  return a.length === b.length && a.every((id, i) => id === b[i]);
 }
