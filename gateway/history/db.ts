@@ -1,4 +1,4 @@
-import { mkdirSync } from 'node:fs';
+import { closeSync, mkdirSync, openSync } from 'node:fs';
 import { dirname } from 'node:path';
 import Database from 'better-sqlite3';
 
@@ -122,6 +122,8 @@ export function openHistoryDb(
   migrations: readonly Migration[] = MIGRATIONS,
 ): { db: Db; applied: string[] } {
   mkdirSync(dirname(file), { recursive: true });
+  // Readable by the server's user only, as the audit log (SQLite gives its WAL the same mode).
+  closeSync(openSync(file, 'a', 0o600));
   const db = new Database(file);
   try {
     db.pragma('journal_mode = WAL');

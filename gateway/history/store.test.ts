@@ -1,4 +1,5 @@
 import { spawn } from 'node:child_process';
+import { statSync } from 'node:fs';
 import path from 'node:path';
 import Database from 'better-sqlite3';
 import { afterEach, describe, expect, it } from 'vitest';
@@ -73,6 +74,7 @@ describe('history database: migrations', () => {
     expect(tables(s.db)).toEqual(['jobs', 'last_seen', 'states', 'touchcut_days']);
     expect(s.db.pragma('journal_mode', { simple: true })).toBe('wal');
     expect(s.db.pragma('synchronous', { simple: true })).toBe(1); // NORMAL
+    expect(statSync(s.file).mode & 0o777).toBe(0o600);
     s.close();
     // Opened again: nothing to apply.
     expect(open().applied).toEqual([]);
