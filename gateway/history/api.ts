@@ -206,7 +206,11 @@ export function createHistoryApi(ctx: GatewayContext, history: History) {
         const only = machineParam(pr, p);
         const { intervals, truncated } = store.states({ machines: allowed, machine: only, from, to });
         const per = new Map<string, typeof intervals>();
-        for (const i of intervals) per.set(i.machine, [...(per.get(i.machine) ?? []), i]);
+        for (const i of intervals) {
+          const list = per.get(i.machine);
+          if (list) list.push(i);
+          else per.set(i.machine, [i]);
+        }
         const machines = machineList(pr, store, only).map((id) => ({
           ...machineInfo(id),
           intervals: (per.get(id) ?? []).map((i) => ({

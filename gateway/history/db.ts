@@ -53,7 +53,7 @@ export const MIGRATIONS: readonly Migration[] = [
       );
       CREATE INDEX jobs_started ON jobs (started_at);
       CREATE INDEX jobs_machine_started ON jobs (machine, started_at);
-      CREATE INDEX jobs_open ON jobs (ended_at) WHERE ended_at IS NULL;
+      CREATE INDEX jobs_ended ON jobs (ended_at);
 
       CREATE TABLE states (
         id INTEGER PRIMARY KEY,

@@ -411,10 +411,28 @@ export class HistoryStore {
 
   /** What the watch learnt about a machine (every summary, with the one before). */
   observe(m: HistoryMachine, _prev: WatchSummary, next: WatchSummary): void {
+    if (this.closed) return;
+    const state: HistoryState = STATES.includes(next.state) ? next.state : 'unknown';
+    const alarm = clip(next.alarm);
+    const name = clip(next.job);
+    const progress =
+      typeof next.progress === 'number' && Number.isFinite(next.progress)
+        ? Math.min(1, Math.max(0, next.progress))
+        : null;
+    // Nothing to write (a stream's frames come often): the progress is kept in memory only.
+    const known = this.live.get(m.id);
+    const job0 = known?.job;
+    if (
+      known &&
+      state === known.state &&
+      alarm === known.alarm &&
+      !(job0 && name && (job0.name === null || (name !== job0.name && isJobState(state)))) &&
+      this.now() - known.seenWritten < SEEN_EVERY_MS
+    ) {
+      if (job0 && progress !== null) job0.progress = progress;
+      return;
+    }
     this.guarded(m.id, 'a state change', () => {
-      const state: HistoryState = STATES.includes(next.state) ? next.state : 'unknown';
-      const alarm = clip(next.alarm);
-      const name = clip(next.job);
       let live = this.live.get(m.id);
       // The clock never runs backwards inside a machine's record (a clock set back by hand).
       const t = Math.max(this.now(), live?.since ?? 0, live?.job?.countedTo ?? 0);
@@ -447,10 +465,6 @@ export class HistoryStore {
         changed = true;
       }
       // The summary that ends a job may still say how far it got (TouchCut at 100 %).
-      const progress =
-        typeof next.progress === 'number' && Number.isFinite(next.progress)
-          ? Math.min(1, Math.max(0, next.progress))
-          : null;
       if (live.job && progress !== null) live.job.progress = progress;
       if (stateChanged) {
         const open = live.job;
@@ -590,6 +604,10 @@ export class HistoryStore {
     const touchcutDays = this.db
       .prepare('DELETE FROM touchcut_days WHERE day < ?')
       .run(localDay(jobsCut)).changes;
+    // A machine with no record left is forgotten (the machine lists of the API).
+    this.db.exec(`DELETE FROM last_seen WHERE
+      NOT EXISTS (SELECT 1 FROM states s WHERE s.machine = last_seen.machine) AND
+      NOT EXISTS (SELECT 1 FROM jobs j WHERE j.machine = last_seen.machine)`);
     if (jobs || states || touchcutDays)
       this.opts.log.info('history pruned', { jobs, states, touchcutDays, retention: r });
     return { jobs, states, touchcutDays };
@@ -693,8 +711,21 @@ export class HistoryStore {
   }
 
   jobs(q: JobQuery): { jobs: JobRow[]; total: number } {
-    const [where, params] = machineFilter('machine', q.machines, q.machine);
-    const parts = [where];
+    let source = 'jobs';
+    let params: unknown[] = [];
+    const parts: string[] = [];
+    if (q.from !== undefined) {
+      [source, params] = this.overlapping('jobs', q, q.from, q.to ?? Number.MAX_SAFE_INTEGER, '>=');
+      source = `(${source})`;
+    } else {
+      const [where, p] = machineFilter('machine', q.machines, q.machine);
+      parts.push(where);
+      params.push(...p);
+      if (q.to !== undefined) {
+        parts.push('started_at < ?');
+        params.push(q.to);
+      }
+    }
     if (q.family) {
       parts.push('family = ?');
       params.push(q.family);
@@ -703,14 +734,6 @@ export class HistoryStore {
     else if (q.outcome) {
       parts.push('outcome = ?');
       params.push(q.outcome);
-    }
-    if (q.to !== undefined) {
-      parts.push('started_at < ?');
-      params.push(q.to);
-    }
-    if (q.from !== undefined) {
-      parts.push('(ended_at IS NULL OR ended_at >= ?)');
-      params.push(q.from);
     }
     if (q.q) {
       const like = `%${q.q.replace(/[\\%_]/g, (c) => `\\${c}`)}%`;
@@ -721,18 +744,44 @@ export class HistoryStore {
       );
       for (let i = 0; i < 6; i++) params.push(like);
     }
-    const w = parts.join(' AND ');
+    const w = parts.length ? parts.join(' AND ') : '1';
     const total = Number(
       this.db
-        .prepare(`SELECT COUNT(*) FROM jobs WHERE ${w}`)
+        .prepare(`SELECT COUNT(*) FROM ${source} WHERE ${w}`)
         .pluck()
         .get(...params),
     );
     const rows = this.db
-      .prepare(`SELECT * FROM jobs WHERE ${w} ORDER BY started_at DESC, id DESC LIMIT ? OFFSET ?`)
+      .prepare(`SELECT * FROM ${source} WHERE ${w} ORDER BY started_at DESC, id DESC LIMIT ? OFFSET ?`)
       .all(...params, q.limit ?? 100, q.offset ?? 0) as JobDbRow[];
     const t = this.now();
     return { jobs: rows.map((r) => this.jobRow(r, t)), total };
+  }
+
+  /**
+   * The rows of `table` (states or jobs) overlapping [from, to) of the machines asked for, as a
+   * subquery with its parameters: those that start in the range (an index range), and each
+   * machine's last one before it if it reaches into the range (one index lookup per machine: a
+   * machine's intervals, and its jobs, never overlap). Not a scan of everything before `to`.
+   * `reaches`: `>` for intervals (one ending at `from` is not in it), `>=` for jobs.
+   */
+  private overlapping(
+    table: 'states' | 'jobs',
+    q: { machines: readonly string[] | null; machine?: string },
+    from: number,
+    to: number,
+    reaches: '>' | '>=',
+  ): [string, unknown[]] {
+    const [inRange, p1] = machineFilter('machine', q.machines, q.machine);
+    const [perMachine, p2] = machineFilter('l.machine', q.machines, q.machine);
+    const sql = `SELECT * FROM ${table} WHERE started_at >= ? AND started_at < ? AND ${inRange}
+      UNION ALL
+      SELECT * FROM ${table} WHERE id IN (
+        SELECT (SELECT x.id FROM ${table} x WHERE x.machine = l.machine AND x.started_at < ?
+                ORDER BY x.started_at DESC, x.id DESC LIMIT 1)
+        FROM last_seen l WHERE ${perMachine})
+      AND (ended_at ${reaches} ? OR ended_at IS NULL)`;
+    return [sql, [from, to, ...p1, from, ...p2, from]];
   }
 
   /** The end of a range as far as it has happened. */
@@ -745,14 +794,13 @@ export class HistoryStore {
     const t = this.now();
     const to = this.until(q.to);
     if (to <= q.from) return { intervals: [], truncated: false };
-    const [where, params] = machineFilter('machine', q.machines, q.machine);
+    const [sub, params] = this.overlapping('states', q, q.from, to, '>');
     const rows = this.db
       .prepare(
-        `SELECT machine, state, alarm, started_at, ended_at FROM states
-         WHERE ${where} AND started_at < ? AND COALESCE(ended_at, ?) > ?
+        `SELECT machine, state, alarm, started_at, ended_at FROM (${sub})
          ORDER BY machine, started_at, id LIMIT ?`,
       )
-      .all(...params, to, t, q.from, max + 1) as Array<{
+      .all(...params, max + 1) as Array<{
       machine: string;
       state: HistoryState;
       alarm: string | null;
@@ -779,14 +827,13 @@ export class HistoryStore {
     const to = this.until(q.to);
     const out = new Map<string, StateSeconds>();
     if (to <= q.from) return out;
-    const [where, params] = machineFilter('machine', q.machines, q.machine);
+    const [sub, params] = this.overlapping('states', q, q.from, to, '>');
     const rows = this.db
       .prepare(
-        `SELECT machine, state, SUM(MIN(COALESCE(ended_at, ?), ?) - MAX(started_at, ?)) AS ms FROM states
-         WHERE ${where} AND started_at < ? AND COALESCE(ended_at, ?) > ?
-         GROUP BY machine, state`,
+        `SELECT machine, state, SUM(MIN(COALESCE(ended_at, ?), ?) - MAX(started_at, ?)) AS ms
+         FROM (${sub}) GROUP BY machine, state`,
       )
-      .all(t, to, q.from, ...params, to, t, q.from) as Array<{
+      .all(t, to, q.from, ...params) as Array<{
       machine: string;
       state: HistoryState;
       ms: number;
@@ -808,16 +855,15 @@ export class HistoryStore {
     const t = this.now();
     const to = this.until(q.to);
     if (to <= q.from) return [];
-    const [where, params] = machineFilter('machine', q.machines, q.machine);
+    const [sub, params] = this.overlapping('states', q, q.from, to, '>');
     const rows = this.db
       .prepare(
         `SELECT alarm, COUNT(*) AS count, SUM(MIN(COALESCE(ended_at, ?), ?) - MAX(started_at, ?)) AS ms,
                 json_group_array(DISTINCT machine) AS machines
-         FROM states
-         WHERE state = 'alarm' AND ${where} AND started_at < ? AND COALESCE(ended_at, ?) > ?
+         FROM (${sub}) WHERE state = 'alarm'
          GROUP BY alarm ORDER BY ms DESC, count DESC LIMIT ?`,
       )
-      .all(t, to, q.from, ...params, to, t, q.from, limit) as Array<{
+      .all(t, to, q.from, ...params, limit) as Array<{
       alarm: string | null;
       count: number;
       ms: number;
@@ -850,22 +896,18 @@ export class HistoryStore {
       )
       .all(...params, q.from, q.to) as Array<{ machine: string; outcome: Outcome; n: number }>;
     for (const r of ended) get(r.machine)[r.outcome] += r.n;
+    // Open at the window's end: each machine's last job started before it, if it had not ended.
+    const [atEnd, endParams] = this.overlapping('jobs', q, q.to, q.to, '>=');
     const going = this.db
-      .prepare(
-        `SELECT machine, COUNT(*) AS n FROM jobs
-         WHERE ${where} AND started_at < ? AND (ended_at IS NULL OR ended_at >= ?) GROUP BY machine`,
-      )
-      .all(...params, q.to, q.to) as Array<{ machine: string; n: number }>;
+      .prepare(`SELECT machine, COUNT(*) AS n FROM (${atEnd}) GROUP BY machine`)
+      .all(...endParams) as Array<{ machine: string; n: number }>;
     for (const r of going) get(r.machine).inProgress += r.n;
     return out;
   }
 
   /** The machines with any record (for a supervisor's list beyond the machines file). */
   machinesRecorded(): string[] {
-    return this.db
-      .prepare('SELECT machine FROM states UNION SELECT machine FROM jobs ORDER BY 1')
-      .pluck()
-      .all() as string[];
+    return this.db.prepare('SELECT machine FROM last_seen ORDER BY 1').pluck().all() as string[];
   }
 
   /** The database file and its write-ahead log, bytes. */
