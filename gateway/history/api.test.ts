@@ -245,3 +245,57 @@ describe('/api/history: answers', () => {
     gw.gw.history.observe(entry('a1', 'Laser one'), S('idle'), S('running'));
   });
 });
+
+describe('/api/history: recorded by the watch, no page open', () => {
+  it('a job a simulated laser runs with nobody watching is in the jobs list', async () => {
+    const { xtoolFamily } = await import('../../src/controllers/xtool/family');
+    const sharing = xtoolFamily.gateway?.sharing;
+    const watch = sharing?.watch;
+    if (!sharing || !watch) throw new Error('the xTool family declares no watch');
+    const sim: { demo: (() => void) | null } = { demo: null };
+    const t = tempDir();
+    cleanups.push(t.cleanup);
+    const gw = await startGateway({
+      machines: { file: null, machines: [entry('x1', 'Laser')] },
+      families: {
+        xtool: {
+          ...xtoolFamily,
+          gateway: { ...xtoolFamily.gateway, sharing: { ...sharing, watch: { ...watch, everyMs: 150 } } },
+          createSimulator: (o) => {
+            const made = xtoolFamily.createSimulator(o);
+            sim.demo = () =>
+              made
+                .controls?.()
+                .find((c) => c.id === 'demo')
+                ?.run();
+            return made;
+          },
+        },
+      },
+      dataDir: t.dir,
+      env: {},
+      watch: true,
+    });
+    cleanups.push(gw.close);
+    const list = async () =>
+      (await (await consoleFetch(`${gw.url}/api/history/jobs`)).json()) as {
+        jobs: Array<{ machine: string; outcome: string | null; runningS: number }>;
+      };
+    const until = async (what: string, ok: () => Promise<boolean>): Promise<void> => {
+      const end = Date.now() + 8000;
+      while (!(await ok())) {
+        if (Date.now() > end) throw new Error(`timed out waiting for ${what}`);
+        await new Promise((r) => setTimeout(r, 50));
+      }
+    };
+    await until('the simulator', () => Promise.resolve(sim.demo !== null));
+    sim.demo?.();
+    await until('the job in the history', async () => (await list()).jobs.length > 0);
+    const [job] = (await list()).jobs;
+    expect(job).toMatchObject({ machine: 'x1', outcome: null });
+    const states = (await (await consoleFetch(`${gw.url}/api/history/states?machine=x1`)).json()) as {
+      machines: Array<{ intervals: Array<{ state: string; open: boolean }> }>;
+    };
+    expect(states.machines[0]?.intervals.at(-1)).toMatchObject({ state: 'running', open: true });
+  });
+});
