@@ -14,6 +14,9 @@ import { envNumber } from './context';
 import { type AlarmCentre, createAlarmStores, webhookPayload } from './alarms';
 import type { SettingsStore } from './settings';
 import type { Webhook } from './webhook';
+import type { History } from './history';
+import { createHistoryApi, HISTORY_API_PATH } from './history/api';
+import { retentionSchema, shiftsSchema } from './settings';
 
 const loginSchema = z.object({ name: z.string().min(1).max(64), password: z.string().min(1).max(1024) });
 const elevateSchema = z.object({ name: z.string().min(1).max(64), pin: z.string().min(1).max(64) });
@@ -26,7 +29,15 @@ const ackSchema = z.union([
   z.object({ id: z.string().min(1).max(40) }).strict(),
   z.object({ machine: z.string().min(1).max(100), key: z.string().min(1).max(200) }).strict(),
 ]);
-const settingsSchema = z.object({ alarmWebhook: z.string().trim().max(2000).nullable() }).strict();
+/** `PUT /api/settings`: any of the fields, at least one. */
+const settingsSchema = z
+  .object({
+    alarmWebhook: z.string().trim().max(2000).nullable().optional(),
+    shifts: shiftsSchema.optional(),
+    retention: retentionSchema.optional(),
+  })
+  .strict()
+  .refine((b) => Object.keys(b).length > 0, 'send at least one setting');
 const ALARM_STATES = ['active', 'unacknowledged', 'cleared', 'all'] as const;
 const SEVERITIES = ['critical', 'warning', 'info'] as const;
 
@@ -39,10 +50,13 @@ export interface ApiStores {
   alarms: AlarmCentre;
   settings: SettingsStore;
   webhook: Webhook;
+  /** The production history (`/api/history/*`); absent: those routes answer 404. */
+  history?: History;
 }
 
 export function createApi(ctx: GatewayContext, stores: ApiStores = createAlarmStores(ctx)) {
-  const { alarms, settings, webhook } = stores;
+  const { alarms, settings, webhook, history } = stores;
+  const historyApi = history ? createHistoryApi(ctx, history) : null;
   const {
     revalidateSockets,
     opts,
@@ -460,7 +474,12 @@ export function createApi(ctx: GatewayContext, stores: ApiStores = createAlarmSt
       }
       case 'GET /api/settings': {
         if (!supervisorOnly(req, res, 'the server settings are for supervisors')) return;
-        sendJson(res, 200, { ...settings.view(), webhook: { ...webhook.stats, waiting: webhook.waiting } });
+        sendJson(res, 200, {
+          ...settings.view(),
+          webhook: { ...webhook.stats, waiting: webhook.waiting },
+          // The history database's size on disk (bytes), null when it could not be opened.
+          historyBytes: history?.store?.sizeBytes() ?? null,
+        });
         return;
       }
       case 'PUT /api/settings': {
@@ -468,14 +487,42 @@ export function createApi(ctx: GatewayContext, stores: ApiStores = createAlarmSt
         if (!p) return;
         const body = settingsSchema.safeParse(await readJson(req));
         if (!body.success) {
-          sendJson(res, 400, { error: 'send {"alarmWebhook": "https://…" or null}' });
+          const i = body.error.issues[0];
+          const where = i?.path.length ? `${i.path.join('.')}: ` : '';
+          sendJson(res, 400, {
+            error: `send {"alarmWebhook": "https://…" or null, "shifts": [{"name", "start": "HH:MM", "end": "HH:MM"}], "retention": {"jobsDays", "statesDays"}}, any of them (${where}${i?.message ?? 'invalid'})`,
+          });
           return;
         }
-        const url = body.data.alarmWebhook || null;
-        const problem = settings.setWebhook(url);
-        if (problem) {
-          sendJson(res, 400, { error: problem });
-          return;
+        const b = body.data;
+        const said: string[] = [];
+        if (b.alarmWebhook !== undefined) {
+          const url = b.alarmWebhook || null;
+          const problem = settings.setWebhook(url);
+          if (problem) {
+            sendJson(res, 400, { error: problem });
+            return;
+          }
+          said.push(
+            url
+              ? `alarm webhook set to ${settings.view().alarmWebhook.shown ?? ''}`
+              : 'alarm webhook removed',
+          );
+        }
+        if (b.shifts || b.retention) {
+          const problem = settings.setHistory({ shifts: b.shifts, retention: b.retention });
+          if (problem) {
+            sendJson(res, 400, { error: problem });
+            return;
+          }
+          if (b.shifts)
+            said.push(`shifts: ${b.shifts.map((s) => `${s.name} ${s.start}–${s.end}`).join(', ') || 'none'}`);
+          if (b.retention) {
+            said.push(
+              `history kept: jobs ${b.retention.jobsDays} days, state changes ${b.retention.statesDays} days`,
+            );
+            history?.prune();
+          }
         }
         const view = settings.view();
         record({
@@ -485,7 +532,7 @@ export function createApi(ctx: GatewayContext, stores: ApiStores = createAlarmSt
           onBehalfOf: p.onBehalfOf,
           source: 'gateway',
           address,
-          detail: url ? `alarm webhook set to ${view.alarmWebhook.shown ?? ''}` : 'alarm webhook removed',
+          detail: said.join('; ').slice(0, 1000),
         });
         sendJson(res, 200, view);
         return;
@@ -529,6 +576,10 @@ export function createApi(ctx: GatewayContext, stores: ApiStores = createAlarmSt
         return;
       }
       default: {
+        if (historyApi && HISTORY_API_PATH.test(url.pathname)) {
+          await historyApi(req, res, url);
+          return;
+        }
         const sim = SIM_API_PATH.exec(url.pathname);
         if (sim) {
           await simApi(req, res, sim[1] ?? '');

@@ -151,6 +151,8 @@ export interface GatewayContext {
   hostAllowed(req: IncomingMessage): boolean;
   /** Writes an audit entry; refusals of unauthenticated clients pass `refusals` first. */
   record(e: Omit<AuditEntry, 'time'>): void;
+  /** Calls `listener` with every record written after it (the job history's commands); returns the removal. */
+  onRecord(listener: (e: Omit<AuditEntry, 'time'>) => void): () => void;
   /** Limits refusals of unauthenticated clients per address (`dispose()` writes what is pending). */
   readonly refusals: RefusalAggregator;
   scrub(text: string): string;
@@ -293,8 +295,20 @@ export function createContext(opts: GatewayOptions): GatewayContext {
   };
   // Refusals of unauthenticated clients (and of the login/PIN limiter) are limited per address.
   const refusals = new RefusalAggregator(REFUSAL_LIMIT, now, append);
+  const recordListeners = new Set<(e: Omit<AuditEntry, 'time'>) => void>();
   const record = (e: Omit<AuditEntry, 'time'>): void => {
     if (refusals.admit(e)) append(e);
+    for (const l of recordListeners) {
+      try {
+        l(e);
+      } catch (err) {
+        log.error('a listener of the audit records failed', { error: String(err) });
+      }
+    }
+  };
+  const onRecord = (listener: (e: Omit<AuditEntry, 'time'>) => void): (() => void) => {
+    recordListeners.add(listener);
+    return () => recordListeners.delete(listener);
   };
   const scrub = (text: string): string => redact(text, allSecrets);
   // ---------------------------------------------------------------- who is asking
@@ -582,6 +596,7 @@ export function createContext(opts: GatewayOptions): GatewayContext {
     upstreamStats,
     hostAllowed,
     record,
+    onRecord,
     scrub,
     who,
     sessionBody,

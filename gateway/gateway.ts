@@ -10,6 +10,7 @@ import { createHttpProxy, READ_METHODS } from './proxy-http';
 import { createWsProxy } from './proxy-ws';
 import { type AlarmCentre, createAlarmStores } from './alarms';
 import { MachineWatch } from './watch';
+import { createHistory, type History } from './history';
 import type { Webhook } from './webhook';
 import { endHeldSessions } from './held-session';
 import type { UserRecord } from './users';
@@ -43,6 +44,8 @@ export interface Gateway {
   readonly alarms: AlarmCentre;
   /** Alarms sent on to the webhook of the server settings. */
   readonly webhook: Webhook;
+  /** The production history (history/): closed by `close()`. */
+  readonly history: History;
   /** Counters of a machine's HTTP upstream (upstream-http.ts): benchmark, tests. */
   upstreamStats(id: string): UpstreamStats | null;
   /** Shared controller sockets of a machine (streams.ts): browser sockets joined, hubs open. */
@@ -82,8 +85,19 @@ export function createGateway(opts: GatewayOptions): Gateway {
   // The alarm centre (alarms.ts) and the webhook that sends alarms on (settings: settings.json).
   const stores = createAlarmStores(ctx);
   const { alarms, webhook } = stores;
-  const api = createApi(ctx, stores);
   const { proxy, watchRead } = createHttpProxy(ctx);
+  // The production history (history/): jobs and states from the watch, commands from the audit records.
+  const history = createHistory({
+    dataDir: ctx.dataDir,
+    log: ctx.log,
+    now: ctx.now,
+    scrub,
+    machines: config.machines,
+    settings: stores.settings,
+    read: watchRead,
+  });
+  const stopHistoryFeed = ctx.onRecord((e) => history.recorded(e));
+  const api = createApi(ctx, { ...stores, history });
   const { upgradeMachine, holdStream } = createWsProxy(ctx);
 
   // The gateway's own slow watch of every machine, viewers or not (watch.ts): job starts and ends
@@ -97,11 +111,13 @@ export function createGateway(opts: GatewayOptions): Gateway {
         read: (pathAndQuery) => watchRead(m, pathAndQuery),
         hold: (path, onFrame, onEnd) => holdStream(m, path, onFrame, onEnd),
         // Alarm words may echo a machine's secret: scrubbed before the list, the page, the webhook.
-        observe: (prev, next) =>
+        observe: (prev, next) => {
           alarms.observe(m, prev, {
             ...next,
             ...(next.alarms ? { alarms: next.alarms.map((a) => ({ ...a, text: scrub(a.text) })) } : {}),
-          }),
+          });
+          history.observe(m, prev, next);
+        },
         report: (e) => {
           const line = `${m.id}: ${e.what}${e.detail ? ` (${e.detail})` : ''}`;
           if (e.what === 'alarm') ctx.log.warn(line, { machine: m.id, event: e.what });
@@ -205,6 +221,8 @@ export function createGateway(opts: GatewayOptions): Gateway {
     if (demoJobs) clearTimeout(demoJobs);
     ctx.refusals.dispose();
     for (const w of watches) w.stop();
+    stopHistoryFeed();
+    history.close(); // last-seen times written, the file closed (synchronous)
     webhook.close();
     alarms.close().catch((e: unknown) => {
       ctx.log.error('could not write the alarm list at shutdown', { error: String(e) });
@@ -246,6 +264,7 @@ export function createGateway(opts: GatewayOptions): Gateway {
     close,
     alarms,
     webhook,
+    history,
     upstreamStats: ctx.upstreamStats,
     streamStats: (id: string) => ctx.streams.stats(id),
   };

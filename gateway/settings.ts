@@ -10,18 +10,61 @@ import { shownUrl, webhookUrlProblem } from './webhook';
  * page then shows it as set by the server's environment and cannot change it).
  */
 
+/** `HH:MM`, 00:00 to 23:59 (the server's local time). */
+const clock = z.string().regex(/^([01]\d|2[0-3]):[0-5]\d$/, 'a time of day as HH:MM (00:00 to 23:59)');
+
+export const shiftSchema = z
+  .object({
+    name: z.string().trim().min(1, 'a shift needs a name').max(40),
+    start: clock,
+    /** Not after `start`: the shift ends the next day (a night shift); equal to `start`: 24 hours. */
+    end: clock,
+  })
+  .strict();
+export type Shift = z.infer<typeof shiftSchema>;
+
+export const shiftsSchema = z
+  .array(shiftSchema)
+  .max(12, 'at most 12 shifts')
+  .refine((l) => new Set(l.map((s) => s.name.toLowerCase())).size === l.length, 'shift names must differ');
+
+export const retentionSchema = z
+  .object({
+    /** Jobs (and TouchCut's daily statistics) older than this many days are pruned. */
+    jobsDays: z.number().int().min(1).max(3650),
+    /** State changes (the timeline, utilisation, stop reasons) older than this are pruned. */
+    statesDays: z.number().int().min(1).max(3650),
+  })
+  .strict();
+export type Retention = z.infer<typeof retentionSchema>;
+
+export const DEFAULT_SHIFTS: Shift[] = [
+  { name: 'Early', start: '06:00', end: '14:00' },
+  { name: 'Late', start: '14:00', end: '22:00' },
+  { name: 'Night', start: '22:00', end: '06:00' },
+];
+export const DEFAULT_RETENTION: Retention = { jobsDays: 365, statesDays: 90 };
+
 const settingsSchema = z.object({
   alarmWebhook: z.string().max(2000).nullable().default(null),
+  shifts: shiftsSchema.default(DEFAULT_SHIFTS),
+  retention: retentionSchema.default(DEFAULT_RETENTION),
 });
 export type ServerSettings = z.infer<typeof settingsSchema>;
 
 /** What the settings page is shown: never the webhook's path or query (often its secret). */
 export interface SettingsView {
   alarmWebhook: { set: boolean; shown: string | null; fromEnvironment: boolean };
+  shifts: Shift[];
+  retention: Retention;
 }
 
 export class SettingsStore {
-  private value: ServerSettings = { alarmWebhook: null };
+  private value: ServerSettings = {
+    alarmWebhook: null,
+    shifts: DEFAULT_SHIFTS,
+    retention: DEFAULT_RETENTION,
+  };
   private readonly file: string;
 
   constructor(
@@ -72,7 +115,27 @@ export class SettingsStore {
         shown: url ? shownUrl(url) : null,
         fromEnvironment: Boolean(this.env.SHOPDECK_ALARM_WEBHOOK?.trim()),
       },
+      shifts: this.value.shifts,
+      retention: this.value.retention,
     };
+  }
+
+  /** The shifts of the shift report (the server's local time). */
+  shifts(): Shift[] {
+    return this.value.shifts;
+  }
+
+  retention(): Retention {
+    return this.value.retention;
+  }
+
+  /** Sets the shifts and/or the retention (validated by the caller): an error in words, or null. */
+  setHistory(change: { shifts?: Shift[]; retention?: Retention }): string | null {
+    return this.save({
+      ...this.value,
+      ...(change.shifts ? { shifts: change.shifts } : {}),
+      ...(change.retention ? { retention: change.retention } : {}),
+    });
   }
 
   /** Sets the webhook URL (null removes it): an error in words, or null when saved. */
@@ -83,7 +146,10 @@ export class SettingsStore {
       const problem = webhookUrlProblem(url);
       if (problem) return problem;
     }
-    const next = { ...this.value, alarmWebhook: url };
+    return this.save({ ...this.value, alarmWebhook: url });
+  }
+
+  private save(next: ServerSettings): string | null {
     try {
       mkdirSync(join(this.file, '..'), { recursive: true });
       writeFileSync(`${this.file}.tmp`, JSON.stringify(next, null, 2), { mode: 0o600 });

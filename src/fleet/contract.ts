@@ -193,6 +193,11 @@ export interface WatchSummary {
    * did not say (the alarm centre keeps what it had).
    */
   alarms?: WatchAlarm[];
+  /**
+   * How far the job is, 0..1, when the family's watch reads it (TouchCut, Duet); absent or null
+   * when unknown. The job history keeps the last value a job had.
+   */
+  progress?: number | null;
 }
 
 /** What a frame of a watched stream says: part of a summary, and alarms it raised (a frame cannot clear). */

@@ -190,6 +190,7 @@ describe('duet sharing: the watch', () => {
       alarm: null,
       job: null,
       alarms: [],
+      progress: null,
     });
     // the virgin model has a message box open: the console shows it as a warning, so does the watch
     expect(duetWatch.poll?.read(200, fixtureText('object-model/model_virgin.json'))).toEqual({
@@ -203,6 +204,7 @@ describe('duet sharing: the watch', () => {
           text: 'Message from the machine: title',
         },
       ],
+      progress: null,
     });
   });
 
@@ -212,6 +214,8 @@ describe('duet sharing: the watch', () => {
       alarm: null,
       job: 'Veil_Token.gcode',
       alarms: [],
+      // filePosition / file.size of the fixture's print
+      progress: expect.closeTo(0.00168, 5),
     });
     expect(summaryOfModel(printing('paused'))).toMatchObject({ state: 'paused' });
     expect(summaryOfModel(printing('halted'))).toMatchObject({
@@ -243,6 +247,7 @@ describe('duet sharing: the watch', () => {
       alarm: null,
       job: null,
       alarms: [],
+      progress: null,
     });
     expect(readModelFrame('{"state":{"status":"processing","upTime":5}}')).toEqual({ state: 'running' });
     expect(readModelFrame('{"state":{"status":"halted"}}')).toEqual({

@@ -139,11 +139,13 @@ export function summaryOfModel(raw: JsonObject): WatchSummary | Error {
   }
   const m = p.data;
   const alarms = alarmsOf(m, () => 0);
+  const job = jobSummary(m);
   return {
     state: watchStateOf(activityOf(m.state.status)),
     alarm: alarms.length ? alarms.map((a) => a.message).join('; ') : null,
-    job: jobSummary(m)?.name ?? null,
+    job: job?.name ?? null,
     alarms: watchAlarmsOf(alarms),
+    progress: job?.progress ?? null,
   };
 }
 

@@ -102,6 +102,7 @@ describe('TouchCut sharing: the watch', () => {
       alarm: null,
       job: null,
       alarms: [],
+      progress: null,
     });
   });
 
@@ -111,7 +112,7 @@ describe('TouchCut sharing: the watch', () => {
         200,
         status({ machineState: 'Cutting', programName: 'bracket.nc', programProgress: 40 }),
       ),
-    ).toEqual({ state: 'running', alarm: null, job: 'bracket.nc', alarms: [] });
+    ).toEqual({ state: 'running', alarm: null, job: 'bracket.nc', alarms: [], progress: 0.4 });
     expect(
       readTouchcutStatus(200, status({ machineState: 'Feed Hold', programName: 'bracket.nc' })),
     ).toMatchObject({
@@ -128,6 +129,7 @@ describe('TouchCut sharing: the watch', () => {
       alarm: 'Torch collision detected',
       job: null,
       alarms: [expect.objectContaining({ severity: 'critical', text: 'Torch collision detected' })],
+      progress: null,
     });
     expect(
       readTouchcutStatus(200, status({ msgStatus: [{ key: 'consumables', msg: 'Electrode life low' }] })),
@@ -136,6 +138,7 @@ describe('TouchCut sharing: the watch', () => {
       alarm: 'Electrode life low',
       job: null,
       alarms: [expect.objectContaining({ severity: 'warning', text: 'Electrode life low' })],
+      progress: null,
     });
   });
 

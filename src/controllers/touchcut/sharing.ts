@@ -7,7 +7,7 @@ import {
 } from '../../fleet/contract';
 import { touchcutAccess, touchcutResource } from './access';
 import { activityOf, alarmsOf, hasProgram } from './normalize';
-import { errorBodySchema, statusSchema } from './wire';
+import { errorBodySchema, progressFraction, statusSchema } from './wire';
 
 /**
  * How the gateway shares one Kinetic TouchCut machine among every viewer (Node-safe, pure: the
@@ -69,7 +69,7 @@ export function touchcutShareRead(path: string, query: URLSearchParams): number 
 /**
  * `GET rest/v1/status` → the summary, with the console's own reading of it (normalize.ts): the
  * state from `machineState` words, an alarm for every `msgStatus` (a critical one makes the state
- * `alarm`, as on the fleet tile), the job from `programName`. A 401 (no accepted key, a login
+ * `alarm`, as on the fleet tile), the job from `programName`, its progress from `programProgress`. A 401 (no accepted key, a login
  * that lapsed), any other failure, a `{code, msg}` body and a body the schema refuses are errors.
  */
 export function readTouchcutStatus(status: number, body: string): WatchSummary | Error {
@@ -101,6 +101,7 @@ export function readTouchcutStatus(status: number, body: string): WatchSummary |
     alarm: alarm.length ? alarm.map((a) => a.message).join('; ') : null,
     job: hasProgram(s.programName) ? s.programName : null,
     alarms: watchAlarmsOf(alarms),
+    progress: hasProgram(s.programName) ? progressFraction(s.programProgress) : null,
   };
 }
 

@@ -1,0 +1,130 @@
+import { join } from 'node:path';
+import type { WatchSummary } from '../../src/fleet/contract';
+import type { AuditEntry } from '../audit';
+import type { Logger } from '../log';
+import type { MachineEntry } from '../machines';
+import type { Retention, SettingsStore, Shift } from '../settings';
+import { HEARTBEAT_MS, HistoryStore } from './store';
+import { TouchcutStatsPuller } from './touchcut-stats';
+
+/**
+ * The production history as the gateway runs it: the store (store.ts) in `<data>/history.sqlite`,
+ * fed by the watch (`observe`) and by the audit records of commands (`command`), a heartbeat for
+ * the last-seen times, pruning at start and daily, and TouchCut's daily statistics. If the file
+ * cannot be opened the console still runs: the history API answers 503 with `problem`.
+ */
+
+export const HISTORY_FILE = 'history.sqlite';
+const DAY_MS = 86_400_000;
+
+export interface History {
+  readonly store: HistoryStore | null;
+  /** Why there is no store. */
+  readonly problem: string | null;
+  observe(m: MachineEntry, prev: WatchSummary, next: WatchSummary): void;
+  /** Every audit record: the job commands a machine accepted are attributed to the job. */
+  recorded(e: Omit<AuditEntry, 'time'>): void;
+  /** Prunes by the retention in the settings now (start, daily, after a change). */
+  prune(): void;
+  /** The shifts and the retention in force (the server settings). */
+  settings(): { shifts: Shift[]; retention: Retention };
+  /** Pulls TouchCut's missing daily statistics now (the timer does it hourly). */
+  pullStats(): Promise<{ stored: number; failed: number }>;
+  close(): void;
+}
+
+export interface HistoryOptions {
+  dataDir: string;
+  log: Logger;
+  now: () => number;
+  machines: readonly MachineEntry[];
+  settings: SettingsStore;
+  /** Alarm texts and job names may echo a machine's secret. */
+  scrub: (text: string) => string;
+  /** The watch's read path (proxy-http.ts `watchRead`): TouchCut's statistics. */
+  read: (
+    m: MachineEntry,
+    pathAndQuery: string,
+  ) => Promise<{ status: number; body: string; gateway?: boolean }>;
+  /** Timers (heartbeat, pruning, statistics); tests drive them by hand. Default true. */
+  timers?: boolean;
+}
+
+export function createHistory(o: HistoryOptions): History {
+  let store: HistoryStore | null = null;
+  let problem: string | null = null;
+  const file = join(o.dataDir, HISTORY_FILE);
+  try {
+    store = new HistoryStore({ file, log: o.log, now: o.now, retention: () => o.settings.retention() });
+  } catch (e) {
+    problem = e instanceof Error ? e.message : String(e);
+    o.log.error('the production history cannot be opened: the console runs without it', {
+      file,
+      error: problem,
+    });
+  }
+  const byId = new Map(o.machines.map((m) => [m.id, m]));
+  const timers: Array<ReturnType<typeof setInterval>> = [];
+  let puller: TouchcutStatsPuller | null = null;
+
+  const prune = (): void => {
+    try {
+      store?.prune();
+    } catch (e) {
+      o.log.error('the production history could not be pruned', { error: String(e) });
+    }
+  };
+
+  if (store) {
+    const s = store;
+    prune();
+    puller = new TouchcutStatsPuller({
+      store: s,
+      machines: o.machines.filter((m) => m.kind === 'touchcut'),
+      read: (m, p) => {
+        const entry = byId.get(m.id);
+        if (!entry) return Promise.reject(new Error(`no machine ${m.id}`));
+        return o.read(entry, p);
+      },
+      log: o.log,
+      now: o.now,
+    });
+    if (o.timers !== false) {
+      timers.push(
+        setInterval(() => s.heartbeat(), HEARTBEAT_MS),
+        setInterval(prune, DAY_MS),
+      );
+      for (const t of timers) t.unref();
+      puller.start();
+    }
+  }
+
+  return {
+    store,
+    problem,
+    observe(m, prev, next) {
+      store?.observe(m, prev, {
+        ...next,
+        alarm: next.alarm === null ? null : o.scrub(next.alarm),
+        job: next.job === null ? null : o.scrub(next.job),
+      });
+    },
+    recorded(e) {
+      if (e.type !== 'command' || e.result !== 'ok' || !e.machine) return;
+      const who = e.onBehalfOf ? `${e.user} (on ${e.onBehalfOf}'s tablet)` : e.user;
+      store?.command(e.machine, e.commandId, who);
+    },
+    prune,
+    settings: () => ({ shifts: o.settings.shifts(), retention: o.settings.retention() }),
+    pullStats: () => puller?.pullOnce() ?? Promise.resolve({ stored: 0, failed: 0 }),
+    close() {
+      for (const t of timers) clearInterval(t);
+      puller?.stop();
+      try {
+        store?.close();
+      } catch (e) {
+        o.log.error('the production history could not be closed', { error: String(e) });
+      }
+    },
+  };
+}

@@ -1,0 +1,946 @@
+import { statSync } from 'node:fs';
+import type Database from 'better-sqlite3';
+import type { WatchSummary } from '../../src/fleet/contract';
+import type { Logger } from '../log';
+import { DEFAULT_RETENTION, type Retention } from '../settings';
+import { openHistoryDb, schemaVersion, type Db, type Migration, MIGRATIONS } from './db';
+import { localDay } from './shifts';
+
+/**
+ * The production history: every job and every state change of every machine, recorded from the
+ * gateway's watch (watch.ts) whether or not a page is open, and TouchCut's daily statistics. One
+ * SQLite file (db.ts); each change is one transaction.
+ *
+ * Jobs. A job opens when a machine goes to `running` or `paused` with no job open, and ends:
+ * - `cancelled`: it went to `idle` after a stop command from the console (`JOB_COMMANDS`) during
+ *   the job, or a stop command came within `LATE_STOP_MS` after it went idle (the watch can see
+ *   the machine stop before the gateway has the command's answer);
+ * - `failed`: it went to `alarm` (the alarm's text is kept as `end_alarm`);
+ * - `finished`: it went to `idle` straight from `running` or `paused`;
+ * - `unknown`: it went to `idle` after the console lost sight of the machine (`offline`/`unknown`
+ *   during the job), the machine named another job while one was open, or the console stopped
+ *   while it ran (closed at the machine's last-seen time when the console starts again).
+ * A job stays open while the machine is `offline` or `unknown`; that time counts neither as
+ * running nor as paused. Who started, paused, resumed and stopped it comes from the commands the
+ * gateway forwarded for the machine (the last of each kind; a start within `START_WINDOW_MS`
+ * before the job opened, or just after).
+ *
+ * State intervals. Each change of state or alarm text closes the machine's open interval and
+ * opens the next, so the time in each state sums for any range. A heartbeat every
+ * `HEARTBEAT_MS` stores each machine's last-seen time (and an open job's running and paused
+ * time), so after a stop or a crash the console closes open jobs and intervals there.
+ */
+
+export const STATES = ['running', 'paused', 'idle', 'alarm', 'offline', 'unknown'] as const;
+export type HistoryState = (typeof STATES)[number];
+export const OUTCOMES = ['finished', 'cancelled', 'failed', 'unknown'] as const;
+export type Outcome = (typeof OUTCOMES)[number];
+
+export type JobCommand = 'start' | 'pause' | 'resume' | 'stop';
+
+/** The console's job commands (the `X-Shopdeck-Command` ids the families send) by what they do. */
+export const JOB_COMMANDS: Readonly<Record<string, JobCommand>> = {
+  'duet.start': 'start',
+  'xtool.run-file': 'start',
+  'prunt.runFile': 'start',
+  'g2core.run-job': 'start',
+  'duet.pause': 'pause',
+  'xtool.pause': 'pause',
+  'prunt.pause': 'pause',
+  'g2core.feedhold': 'pause',
+  'duet.resume': 'resume',
+  'xtool.resume': 'resume',
+  'prunt.resume': 'resume',
+  'g2core.resume': 'resume',
+  'duet.cancel': 'stop',
+  'duet.estop': 'stop',
+  'xtool.stop': 'stop',
+  'prunt.cancel': 'stop',
+  'g2core.kill': 'stop',
+};
+
+export const HEARTBEAT_MS = 5000;
+/** A summary with no change refreshes the last-seen time at most this often. */
+export const SEEN_EVERY_MS = 5000;
+export const CHECKPOINT_EVERY_MS = 60_000;
+/** A start command this long before a job opens (or after: the watch may see it first) started it. */
+export const START_WINDOW_MS = 5 * 60_000;
+export const LATE_STOP_MS = 30_000;
+const MAX_TEXT = 500;
+const MAX_USER = 200;
+const PRUNE_BATCH = 5000;
+const DAY_MS = 86_400_000;
+
+export interface HistoryMachine {
+  id: string;
+  name: string;
+  kind: string;
+}
+
+export interface JobRow {
+  id: number;
+  machine: string;
+  family: string;
+  name: string | null;
+  /** ms since the epoch */
+  startedAt: number;
+  endedAt: number | null;
+  /** null: still open */
+  outcome: Outcome | null;
+  runningMs: number;
+  pausedMs: number;
+  progress: number | null;
+  startedBy: string | null;
+  pausedBy: string | null;
+  resumedBy: string | null;
+  stoppedBy: string | null;
+  endAlarm: string | null;
+}
+
+export interface Interval {
+  machine: string;
+  state: HistoryState;
+  alarm: string | null;
+  /** Clipped to the range asked for. */
+  from: number;
+  to: number;
+  /** Still open (its end is "now"). */
+  open: boolean;
+}
+
+export type StateSeconds = Record<HistoryState | 'unrecorded', number>;
+
+export interface JobQuery {
+  /** The machines the asker may see (null: all). */
+  machines: readonly string[] | null;
+  machine?: string;
+  family?: string;
+  outcome?: Outcome | 'open';
+  /** Jobs that overlap [from, to). */
+  from?: number;
+  to?: number;
+  /** Text in the job's name or in a user's name (case-insensitive). */
+  q?: string;
+  limit?: number;
+  offset?: number;
+}
+
+export interface RangeQuery {
+  machines: readonly string[] | null;
+  machine?: string;
+  from: number;
+  to: number;
+}
+
+export interface StopReason {
+  alarm: string | null;
+  count: number;
+  ms: number;
+  machines: string[];
+}
+
+export interface JobCounts {
+  finished: number;
+  cancelled: number;
+  failed: number;
+  unknown: number;
+  /** Overlapping the range and not ended in it (ended later, or still open). */
+  inProgress: number;
+}
+
+export interface TouchcutDay {
+  machine: string;
+  day: string;
+  pulledAt: number;
+  stats: unknown;
+}
+
+export interface HistoryInfo {
+  file: string;
+  /** The database file with its write-ahead log. */
+  sizeBytes: number;
+  schemaVersion: number;
+  oldest: { job: number | null; state: number | null; touchcutDay: string | null };
+  counts: { jobs: number; states: number; touchcutDays: number };
+  retention: Retention;
+}
+
+export interface HistoryStoreOptions {
+  file: string;
+  log: Logger;
+  now?: () => number;
+  retention?: () => Retention;
+  /** Tests: open with fewer migrations (an older version of the file). */
+  migrations?: readonly Migration[];
+}
+
+interface LiveJob {
+  id: number;
+  name: string | null;
+  startedAt: number;
+  countedTo: number;
+  runningMs: number;
+  pausedMs: number;
+  progress: number | null;
+  startedBy: string | null;
+  stopAsked: boolean;
+  /** The console lost sight of the machine during the job. */
+  blind: boolean;
+}
+
+interface Live {
+  kind: string;
+  intervalId: number;
+  state: HistoryState;
+  alarm: string | null;
+  since: number;
+  job: LiveJob | null;
+  seenWritten: number;
+  lastClosed: { id: number; endedAt: number; outcome: Outcome } | null;
+}
+
+function clip(text: string | null | undefined, max = MAX_TEXT): string | null {
+  if (text === null || text === undefined) return null;
+  const t = text.trim();
+  return t ? t.slice(0, max) : null;
+}
+
+function isJobState(s: HistoryState): boolean {
+  return s === 'running' || s === 'paused';
+}
+
+function emptySeconds(): StateSeconds {
+  return { running: 0, paused: 0, idle: 0, alarm: 0, offline: 0, unknown: 0, unrecorded: 0 };
+}
+
+/** `(machine IN allowed)` for a nullable list, as SQL and parameters. */
+function machineFilter(
+  col: string,
+  machines: readonly string[] | null,
+  machine?: string,
+): [string, unknown[]] {
+  const parts: string[] = [];
+  const params: unknown[] = [];
+  if (machines) {
+    parts.push(`${col} IN (SELECT value FROM json_each(?))`);
+    params.push(JSON.stringify(machines));
+  }
+  if (machine) {
+    parts.push(`${col} = ?`);
+    params.push(machine);
+  }
+  return [parts.length ? parts.join(' AND ') : '1', params];
+}
+
+interface JobDbRow {
+  id: number;
+  machine: string;
+  family: string;
+  name: string | null;
+  started_at: number;
+  ended_at: number | null;
+  outcome: Outcome | null;
+  running_ms: number;
+  paused_ms: number;
+  progress: number | null;
+  started_by: string | null;
+  paused_by: string | null;
+  resumed_by: string | null;
+  stopped_by: string | null;
+  end_alarm: string | null;
+}
+
+export class HistoryStore {
+  readonly db: Db;
+  readonly file: string;
+  private readonly now: () => number;
+  private readonly retention: () => Retention;
+  private readonly live = new Map<string, Live>();
+  private readonly pendingStarts = new Map<string, { user: string; at: number }>();
+  private lastCheckpoint: number;
+  private lastError = 0;
+  private closed = false;
+  /** What `recover()` closed when the store opened. */
+  readonly recovered: { jobs: number; states: number };
+  readonly applied: string[];
+
+  private readonly st: {
+    openInterval: Database.Statement;
+    closeInterval: Database.Statement;
+    openJob: Database.Statement;
+    countJob: Database.Statement;
+    closeJob: Database.Statement;
+    seen: Database.Statement;
+  };
+
+  constructor(private readonly opts: HistoryStoreOptions) {
+    this.file = opts.file;
+    this.now = opts.now ?? Date.now;
+    this.retention = opts.retention ?? (() => DEFAULT_RETENTION);
+    const { db, applied } = openHistoryDb(opts.file, opts.migrations ?? MIGRATIONS);
+    this.db = db;
+    this.applied = applied;
+    if (applied.length) opts.log.info('history database migrated', { file: opts.file, applied });
+    this.lastCheckpoint = this.now();
+    this.st = {
+      openInterval: db.prepare(
+        'INSERT INTO states (machine, state, alarm, started_at, ended_at) VALUES (?, ?, ?, ?, NULL)',
+      ),
+      closeInterval: db.prepare('UPDATE states SET ended_at = ? WHERE id = ?'),
+      openJob: db.prepare(
+        'INSERT INTO jobs (machine, family, name, started_at, counted_to, started_by) VALUES (?, ?, ?, ?, ?, ?)',
+      ),
+      countJob: db.prepare(
+        'UPDATE jobs SET running_ms = ?, paused_ms = ?, counted_to = ?, progress = ?, name = ? WHERE id = ?',
+      ),
+      closeJob: db.prepare(
+        `UPDATE jobs SET running_ms = ?, paused_ms = ?, counted_to = ?, progress = ?, name = ?,
+           ended_at = ?, outcome = ?, end_alarm = ? WHERE id = ?`,
+      ),
+      seen: db.prepare(
+        'INSERT INTO last_seen (machine, at) VALUES (?, ?) ON CONFLICT (machine) DO UPDATE SET at = excluded.at',
+      ),
+    };
+    this.recovered = this.recover();
+    if (this.recovered.jobs || this.recovered.states)
+      opts.log.info(
+        'history: closed what was open when the console stopped, at the last time it saw each machine',
+        {
+          jobs: this.recovered.jobs,
+          states: this.recovered.states,
+        },
+      );
+  }
+
+  // ------------------------------------------------------------------------------ recording
+
+  /**
+   * The console (re)started: every job still open is closed as `unknown` and every open state
+   * interval is closed, each at its machine's last-seen time (the job's counted time ends there).
+   */
+  private recover(): { jobs: number; states: number } {
+    return this.db
+      .transaction(() => {
+        const seen = '(SELECT at FROM last_seen l WHERE l.machine = %s.machine)';
+        const jobs = this.db
+          .prepare(
+            `UPDATE jobs SET outcome = 'unknown',
+               ended_at = MAX(started_at, counted_to, COALESCE(${seen.replace('%s', 'jobs')}, 0))
+             WHERE ended_at IS NULL`,
+          )
+          .run().changes;
+        const states = this.db
+          .prepare(
+            `UPDATE states SET ended_at = MAX(started_at, COALESCE(${seen.replace('%s', 'states')}, 0))
+             WHERE ended_at IS NULL`,
+          )
+          .run().changes;
+        return { jobs, states };
+      })
+      .immediate();
+  }
+
+  /** Runs `f` in a transaction; on failure the machine's in-memory state is put back and it is logged. */
+  private guarded(machine: string, what: string, f: () => void): void {
+    if (this.closed) return;
+    const before = this.live.get(machine);
+    const copy = before ? structuredClone(before) : undefined;
+    try {
+      this.db.transaction(f).immediate();
+    } catch (e) {
+      if (copy) this.live.set(machine, copy);
+      else this.live.delete(machine);
+      const t = this.now();
+      if (t - this.lastError > 60_000) {
+        this.lastError = t;
+        this.opts.log.error(`history: could not record ${what}`, { machine, error: String(e) });
+      }
+    }
+  }
+
+  /** Adds the time since the job was last counted to running or paused, by the state it was in. */
+  private count(live: Live, t: number): void {
+    const job = live.job;
+    if (!job) return;
+    const d = Math.max(0, t - job.countedTo);
+    if (live.state === 'running') job.runningMs += d;
+    else if (live.state === 'paused') job.pausedMs += d;
+    job.countedTo = Math.max(job.countedTo, t);
+  }
+
+  private writeJob(job: LiveJob): void {
+    this.st.countJob.run(job.runningMs, job.pausedMs, job.countedTo, job.progress, job.name, job.id);
+  }
+
+  private closeJob(live: Live, t: number, outcome: Outcome, endAlarm: string | null): void {
+    const job = live.job;
+    if (!job) return;
+    this.st.closeJob.run(
+      job.runningMs,
+      job.pausedMs,
+      job.countedTo,
+      job.progress,
+      job.name,
+      t,
+      outcome,
+      endAlarm,
+      job.id,
+    );
+    live.lastClosed = { id: job.id, endedAt: t, outcome };
+    live.job = null;
+  }
+
+  private openJob(m: HistoryMachine, live: Live, t: number, name: string | null): void {
+    const pending = this.pendingStarts.get(m.id);
+    const startedBy = pending && t - pending.at <= START_WINDOW_MS ? pending.user : null;
+    this.pendingStarts.delete(m.id);
+    const id = Number(this.st.openJob.run(m.id, m.kind, name, t, t, startedBy).lastInsertRowid);
+    live.job = {
+      id,
+      name,
+      startedAt: t,
+      countedTo: t,
+      runningMs: 0,
+      pausedMs: 0,
+      progress: null,
+      startedBy,
+      stopAsked: false,
+      blind: false,
+    };
+  }
+
+  /** What the watch learnt about a machine (every summary, with the one before). */
+  observe(m: HistoryMachine, _prev: WatchSummary, next: WatchSummary): void {
+    if (this.closed) return;
+    const state: HistoryState = STATES.includes(next.state) ? next.state : 'unknown';
+    const alarm = clip(next.alarm);
+    const name = clip(next.job);
+    const progress =
+      typeof next.progress === 'number' && Number.isFinite(next.progress)
+        ? Math.min(1, Math.max(0, next.progress))
+        : null;
+    // Nothing to write (a stream's frames come often): the progress is kept in memory only.
+    const known = this.live.get(m.id);
+    const job0 = known?.job;
+    if (
+      known &&
+      state === known.state &&
+      alarm === known.alarm &&
+      !(job0 && name && (job0.name === null || (name !== job0.name && isJobState(state)))) &&
+      this.now() - known.seenWritten < SEEN_EVERY_MS
+    ) {
+      if (job0 && progress !== null) job0.progress = progress;
+      return;
+    }
+    this.guarded(m.id, 'a state change', () => {
+      let live = this.live.get(m.id);
+      // The clock never runs backwards inside a machine's record (a clock set back by hand).
+      const t = Math.max(this.now(), live?.since ?? 0, live?.job?.countedTo ?? 0);
+      let changed = false;
+      let stateChanged = false;
+      const was = live?.state ?? 'unknown';
+      if (!live) {
+        const intervalId = Number(this.st.openInterval.run(m.id, state, alarm, t).lastInsertRowid);
+        live = {
+          kind: m.kind,
+          intervalId,
+          state,
+          alarm,
+          since: t,
+          job: null,
+          seenWritten: 0,
+          lastClosed: null,
+        };
+        this.live.set(m.id, live);
+        changed = true;
+        stateChanged = true;
+      } else if (state !== live.state || alarm !== live.alarm) {
+        this.count(live, t);
+        this.st.closeInterval.run(t, live.intervalId);
+        live.intervalId = Number(this.st.openInterval.run(m.id, state, alarm, t).lastInsertRowid);
+        stateChanged = state !== live.state;
+        live.state = state;
+        live.alarm = alarm;
+        live.since = t;
+        changed = true;
+      }
+      // The summary that ends a job may still say how far it got (TouchCut at 100 %).
+      if (live.job && progress !== null) live.job.progress = progress;
+      if (stateChanged) {
+        const open = live.job;
+        if (isJobState(state)) {
+          if (!open) this.openJob(m, live, t, name);
+        } else if (open && state === 'idle') {
+          const outcome: Outcome = open.stopAsked
+            ? 'cancelled'
+            : isJobState(was) && !open.blind
+              ? 'finished'
+              : 'unknown';
+          this.closeJob(live, t, outcome, null);
+        } else if (open && state === 'alarm') {
+          this.closeJob(live, t, 'failed', alarm);
+        } else if (open) {
+          open.blind = true; // offline or unknown: the job stays open
+        }
+      }
+      const job = live.job;
+      if (job && name && job.name && name !== job.name && isJobState(state)) {
+        // Another job while one was open: the watch missed the end of the first.
+        this.count(live, t);
+        this.closeJob(live, t, 'unknown', null);
+        this.openJob(m, live, t, name);
+        changed = true;
+      } else if (job && !job.name && name) {
+        job.name = name;
+        changed = true;
+      }
+      if (live.job && progress !== null) live.job.progress = progress;
+      if (changed && live.job) this.writeJob(live.job);
+      if (changed || t - live.seenWritten >= SEEN_EVERY_MS) {
+        this.st.seen.run(m.id, t);
+        live.seenWritten = t;
+      }
+    });
+  }
+
+  /** A command the gateway forwarded to a machine and the machine accepted (from the audit record). */
+  command(machine: string, commandId: string | undefined, user: string): void {
+    const kind = commandId ? JOB_COMMANDS[commandId] : undefined;
+    if (!kind) return;
+    const who = clip(user, MAX_USER) ?? 'unknown';
+    this.guarded(machine, 'a job command', () => {
+      const t = this.now();
+      const live = this.live.get(machine);
+      const job = live?.job ?? null;
+      const set = (col: 'started_by' | 'paused_by' | 'resumed_by' | 'stopped_by', id: number): void => {
+        this.db.prepare(`UPDATE jobs SET ${col} = ? WHERE id = ?`).run(who, id);
+      };
+      switch (kind) {
+        case 'start':
+          if (job && !job.startedBy && t - job.startedAt <= START_WINDOW_MS) {
+            job.startedBy = who;
+            set('started_by', job.id);
+          } else this.pendingStarts.set(machine, { user: who, at: t });
+          return;
+        case 'pause':
+          if (job) set('paused_by', job.id);
+          return;
+        case 'resume':
+          if (job) set('resumed_by', job.id);
+          return;
+        case 'stop': {
+          if (job) {
+            job.stopAsked = true;
+            set('stopped_by', job.id);
+            return;
+          }
+          const last = live?.lastClosed;
+          if (last && last.outcome === 'finished' && t - last.endedAt <= LATE_STOP_MS) {
+            this.db
+              .prepare("UPDATE jobs SET outcome = 'cancelled', stopped_by = ? WHERE id = ?")
+              .run(who, last.id);
+            last.outcome = 'cancelled';
+          }
+          return;
+        }
+      }
+    });
+  }
+
+  /** Every `HEARTBEAT_MS`: last-seen times and open jobs' counted time; a checkpoint each minute. */
+  heartbeat(): void {
+    if (this.closed) return;
+    const t0 = this.now();
+    try {
+      this.db
+        .transaction(() => {
+          for (const [machine, live] of this.live) {
+            const t = Math.max(t0, live.since);
+            if (live.job) {
+              this.count(live, t);
+              this.writeJob(live.job);
+            }
+            this.st.seen.run(machine, t);
+            live.seenWritten = t;
+          }
+        })
+        .immediate();
+      if (t0 - this.lastCheckpoint >= CHECKPOINT_EVERY_MS) {
+        this.lastCheckpoint = t0;
+        this.db.pragma('wal_checkpoint(PASSIVE)');
+      }
+    } catch (e) {
+      if (t0 - this.lastError > 60_000) {
+        this.lastError = t0;
+        this.opts.log.error('history: could not record the last-seen times', { error: String(e) });
+      }
+    }
+  }
+
+  /** Deletes what is older than the retention (jobs and TouchCut days: `jobsDays`; states: `statesDays`). */
+  prune(): { jobs: number; states: number; touchcutDays: number } {
+    if (this.closed) return { jobs: 0, states: 0, touchcutDays: 0 };
+    const r = this.retention();
+    const t = this.now();
+    const jobsCut = t - r.jobsDays * DAY_MS;
+    const statesCut = t - r.statesDays * DAY_MS;
+    const batched = (sql: string, param: number | string): number => {
+      let total = 0;
+      const stmt = this.db.prepare(sql);
+      for (;;) {
+        const n = stmt.run(param, PRUNE_BATCH).changes;
+        total += n;
+        if (n < PRUNE_BATCH) return total;
+      }
+    };
+    const jobs = batched(
+      'DELETE FROM jobs WHERE id IN (SELECT id FROM jobs WHERE ended_at IS NOT NULL AND ended_at < ? LIMIT ?)',
+      jobsCut,
+    );
+    const states = batched(
+      'DELETE FROM states WHERE id IN (SELECT id FROM states WHERE ended_at IS NOT NULL AND ended_at < ? LIMIT ?)',
+      statesCut,
+    );
+    const touchcutDays = this.db
+      .prepare('DELETE FROM touchcut_days WHERE day < ?')
+      .run(localDay(jobsCut)).changes;
+    // A machine with no record left is forgotten (the machine lists of the API).
+    this.db.exec(`DELETE FROM last_seen WHERE
+      NOT EXISTS (SELECT 1 FROM states s WHERE s.machine = last_seen.machine) AND
+      NOT EXISTS (SELECT 1 FROM jobs j WHERE j.machine = last_seen.machine)`);
+    if (jobs || states || touchcutDays)
+      this.opts.log.info('history pruned', { jobs, states, touchcutDays, retention: r });
+    return { jobs, states, touchcutDays };
+  }
+
+  /** Writes the last-seen times and closes the file (the gateway stops). */
+  close(): void {
+    if (this.closed) return;
+    this.heartbeat();
+    this.closed = true;
+    try {
+      this.db.pragma('wal_checkpoint(TRUNCATE)');
+    } catch {
+      /* a reader holds it: the WAL stays, which is fine */
+    }
+    this.db.close();
+  }
+
+  get isClosed(): boolean {
+    return this.closed;
+  }
+
+  // ------------------------------------------------------------------------------ TouchCut
+
+  putTouchcutDay(machine: string, day: string, stats: unknown, pulledAt: number): void {
+    this.db
+      .prepare(
+        `INSERT INTO touchcut_days (machine, day, pulled_at, stats) VALUES (?, ?, ?, ?)
+         ON CONFLICT (machine, day) DO UPDATE SET pulled_at = excluded.pulled_at, stats = excluded.stats`,
+      )
+      .run(machine, day, pulledAt, JSON.stringify(stats));
+  }
+
+  touchcutDaysHeld(machine: string, fromDay: string): Set<string> {
+    const rows = this.db
+      .prepare('SELECT day FROM touchcut_days WHERE machine = ? AND day >= ?')
+      .pluck()
+      .all(machine, fromDay) as string[];
+    return new Set(rows);
+  }
+
+  touchcutDays(q: {
+    machines: readonly string[] | null;
+    machine?: string;
+    from?: string;
+    to?: string;
+  }): TouchcutDay[] {
+    const [where, params] = machineFilter('machine', q.machines, q.machine);
+    const rows = this.db
+      .prepare(
+        `SELECT machine, day, pulled_at, stats FROM touchcut_days
+         WHERE ${where} AND day >= ? AND day < ? ORDER BY day DESC, machine LIMIT 5000`,
+      )
+      .all(...params, q.from ?? '0000-00-00', q.to ?? '9999-99-99') as Array<{
+      machine: string;
+      day: string;
+      pulled_at: number;
+      stats: string;
+    }>;
+    return rows.map((r) => ({
+      machine: r.machine,
+      day: r.day,
+      pulledAt: r.pulled_at,
+      stats: JSON.parse(r.stats) as unknown,
+    }));
+  }
+
+  // ------------------------------------------------------------------------------ queries
+
+  private jobRow(r: JobDbRow, t: number): JobRow {
+    let runningMs = r.running_ms;
+    let pausedMs = r.paused_ms;
+    let progress = r.progress;
+    let name = r.name;
+    // An open job: counted up to now from what is in memory.
+    const live = r.ended_at === null ? this.live.get(r.machine) : undefined;
+    if (live?.job?.id === r.id) {
+      const d = Math.max(0, t - live.job.countedTo);
+      runningMs = live.job.runningMs + (live.state === 'running' ? d : 0);
+      pausedMs = live.job.pausedMs + (live.state === 'paused' ? d : 0);
+      progress = live.job.progress;
+      name = live.job.name;
+    }
+    return {
+      id: r.id,
+      machine: r.machine,
+      family: r.family,
+      name,
+      startedAt: r.started_at,
+      endedAt: r.ended_at,
+      outcome: r.outcome,
+      runningMs,
+      pausedMs,
+      progress,
+      startedBy: r.started_by,
+      pausedBy: r.paused_by,
+      resumedBy: r.resumed_by,
+      stoppedBy: r.stopped_by,
+      endAlarm: r.end_alarm,
+    };
+  }
+
+  jobs(q: JobQuery): { jobs: JobRow[]; total: number } {
+    let source = 'jobs';
+    let params: unknown[] = [];
+    const parts: string[] = [];
+    if (q.from !== undefined) {
+      [source, params] = this.overlapping('jobs', q, q.from, q.to ?? Number.MAX_SAFE_INTEGER, '>=');
+      source = `(${source})`;
+    } else {
+      const [where, p] = machineFilter('machine', q.machines, q.machine);
+      parts.push(where);
+      params.push(...p);
+      if (q.to !== undefined) {
+        parts.push('started_at < ?');
+        params.push(q.to);
+      }
+    }
+    if (q.family) {
+      parts.push('family = ?');
+      params.push(q.family);
+    }
+    if (q.outcome === 'open') parts.push('ended_at IS NULL');
+    else if (q.outcome) {
+      parts.push('outcome = ?');
+      params.push(q.outcome);
+    }
+    if (q.q) {
+      const like = `%${q.q.replace(/[\\%_]/g, (c) => `\\${c}`)}%`;
+      parts.push(
+        `(${['name', 'started_by', 'paused_by', 'resumed_by', 'stopped_by', 'end_alarm']
+          .map((c) => `${c} LIKE ? ESCAPE '\\'`)
+          .join(' OR ')})`,
+      );
+      for (let i = 0; i < 6; i++) params.push(like);
+    }
+    const w = parts.length ? parts.join(' AND ') : '1';
+    const total = Number(
+      this.db
+        .prepare(`SELECT COUNT(*) FROM ${source} WHERE ${w}`)
+        .pluck()
+        .get(...params),
+    );
+    const rows = this.db
+      .prepare(`SELECT * FROM ${source} WHERE ${w} ORDER BY started_at DESC, id DESC LIMIT ? OFFSET ?`)
+      .all(...params, q.limit ?? 100, q.offset ?? 0) as JobDbRow[];
+    const t = this.now();
+    return { jobs: rows.map((r) => this.jobRow(r, t)), total };
+  }
+
+  /**
+   * The rows of `table` (states or jobs) overlapping [from, to) of the machines asked for, as a
+   * subquery with its parameters: those that start in the range (an index range), and each
+   * machine's last one before it if it reaches into the range (one index lookup per machine: a
+   * machine's intervals, and its jobs, never overlap). Not a scan of everything before `to`.
+   * `reaches`: `>` for intervals (one ending at `from` is not in it), `>=` for jobs.
+   */
+  private overlapping(
+    table: 'states' | 'jobs',
+    q: { machines: readonly string[] | null; machine?: string },
+    from: number,
+    to: number,
+    reaches: '>' | '>=',
+  ): [string, unknown[]] {
+    const [inRange, p1] = machineFilter('machine', q.machines, q.machine);
+    const [perMachine, p2] = machineFilter('l.machine', q.machines, q.machine);
+    const sql = `SELECT * FROM ${table} WHERE started_at >= ? AND started_at < ? AND ${inRange}
+      UNION ALL
+      SELECT * FROM ${table} WHERE id IN (
+        SELECT (SELECT x.id FROM ${table} x WHERE x.machine = l.machine AND x.started_at < ?
+                ORDER BY x.started_at DESC, x.id DESC LIMIT 1)
+        FROM last_seen l WHERE ${perMachine})
+      AND (ended_at ${reaches} ? OR ended_at IS NULL)`;
+    return [sql, [from, to, ...p1, from, ...p2, from]];
+  }
+
+  /** The end of a range as far as it has happened. */
+  private until(to: number): number {
+    return Math.min(to, this.now());
+  }
+
+  /** The state intervals overlapping [from, to), clipped; open ones end now. At most `max`. */
+  states(q: RangeQuery, max = 50_000): { intervals: Interval[]; truncated: boolean } {
+    const t = this.now();
+    const to = this.until(q.to);
+    if (to <= q.from) return { intervals: [], truncated: false };
+    const [sub, params] = this.overlapping('states', q, q.from, to, '>');
+    const rows = this.db
+      .prepare(
+        `SELECT machine, state, alarm, started_at, ended_at FROM (${sub})
+         ORDER BY machine, started_at, id LIMIT ?`,
+      )
+      .all(...params, max + 1) as Array<{
+      machine: string;
+      state: HistoryState;
+      alarm: string | null;
+      started_at: number;
+      ended_at: number | null;
+    }>;
+    const truncated = rows.length > max;
+    return {
+      truncated,
+      intervals: rows.slice(0, max).map((r) => ({
+        machine: r.machine,
+        state: r.state,
+        alarm: r.alarm,
+        from: Math.max(r.started_at, q.from),
+        to: Math.min(r.ended_at ?? t, to),
+        open: r.ended_at === null,
+      })),
+    };
+  }
+
+  /** Per machine: ms in each state within [from, to) (to clipped to now; open intervals count to now). */
+  utilisation(q: RangeQuery): Map<string, StateSeconds> {
+    const t = this.now();
+    const to = this.until(q.to);
+    const out = new Map<string, StateSeconds>();
+    if (to <= q.from) return out;
+    const [sub, params] = this.overlapping('states', q, q.from, to, '>');
+    const rows = this.db
+      .prepare(
+        `SELECT machine, state, SUM(MIN(COALESCE(ended_at, ?), ?) - MAX(started_at, ?)) AS ms
+         FROM (${sub}) GROUP BY machine, state`,
+      )
+      .all(t, to, q.from, ...params) as Array<{
+      machine: string;
+      state: HistoryState;
+      ms: number;
+    }>;
+    for (const r of rows) {
+      const s = out.get(r.machine) ?? emptySeconds();
+      s[r.state] += r.ms;
+      out.set(r.machine, s);
+    }
+    for (const s of out.values()) {
+      const known = STATES.reduce((a, k) => a + s[k], 0);
+      s.unrecorded = Math.max(0, to - q.from - known);
+    }
+    return out;
+  }
+
+  /** Alarm intervals overlapping the range, by alarm text: how many, how long (clipped), on which machines. */
+  stops(q: RangeQuery, limit = 50): StopReason[] {
+    const t = this.now();
+    const to = this.until(q.to);
+    if (to <= q.from) return [];
+    const [sub, params] = this.overlapping('states', q, q.from, to, '>');
+    const rows = this.db
+      .prepare(
+        `SELECT alarm, COUNT(*) AS count, SUM(MIN(COALESCE(ended_at, ?), ?) - MAX(started_at, ?)) AS ms,
+                json_group_array(DISTINCT machine) AS machines
+         FROM (${sub}) WHERE state = 'alarm'
+         GROUP BY alarm ORDER BY ms DESC, count DESC LIMIT ?`,
+      )
+      .all(t, to, q.from, ...params, limit) as Array<{
+      alarm: string | null;
+      count: number;
+      ms: number;
+      machines: string;
+    }>;
+    return rows.map((r) => ({
+      alarm: r.alarm,
+      count: r.count,
+      ms: r.ms,
+      machines: (JSON.parse(r.machines) as string[]).sort(),
+    }));
+  }
+
+  /** Per machine: jobs that ended in [from, to) by outcome, and those in progress at its end. */
+  jobCounts(q: RangeQuery): Map<string, JobCounts> {
+    const [where, params] = machineFilter('machine', q.machines, q.machine);
+    const out = new Map<string, JobCounts>();
+    const get = (m: string): JobCounts => {
+      let c = out.get(m);
+      if (!c) {
+        c = { finished: 0, cancelled: 0, failed: 0, unknown: 0, inProgress: 0 };
+        out.set(m, c);
+      }
+      return c;
+    };
+    const ended = this.db
+      .prepare(
+        `SELECT machine, outcome, COUNT(*) AS n FROM jobs
+         WHERE ${where} AND ended_at >= ? AND ended_at < ? GROUP BY machine, outcome`,
+      )
+      .all(...params, q.from, q.to) as Array<{ machine: string; outcome: Outcome; n: number }>;
+    for (const r of ended) get(r.machine)[r.outcome] += r.n;
+    // Open at the window's end: each machine's last job started before it, if it had not ended.
+    const [atEnd, endParams] = this.overlapping('jobs', q, q.to, q.to, '>=');
+    const going = this.db
+      .prepare(`SELECT machine, COUNT(*) AS n FROM (${atEnd}) GROUP BY machine`)
+      .all(...endParams) as Array<{ machine: string; n: number }>;
+    for (const r of going) get(r.machine).inProgress += r.n;
+    return out;
+  }
+
+  /** The machines with any record (for a supervisor's list beyond the machines file). */
+  machinesRecorded(): string[] {
+    return this.db.prepare('SELECT machine FROM last_seen ORDER BY 1').pluck().all() as string[];
+  }
+
+  /** The database file and its write-ahead log, bytes. */
+  sizeBytes(): number {
+    let size = 0;
+    for (const f of [this.file, `${this.file}-wal`]) {
+      try {
+        size += statSync(f).size;
+      } catch {
+        /* no WAL right now */
+      }
+    }
+    return size;
+  }
+
+  info(): HistoryInfo {
+    const size = this.sizeBytes();
+    const one = (sql: string): unknown => this.db.prepare(sql).pluck().get();
+    return {
+      file: this.file,
+      sizeBytes: size,
+      schemaVersion: schemaVersion(this.db),
+      oldest: {
+        job: (one('SELECT MIN(started_at) FROM jobs') as number | null) ?? null,
+        state: (one('SELECT MIN(started_at) FROM states') as number | null) ?? null,
+        touchcutDay: (one('SELECT MIN(day) FROM touchcut_days') as string | null) ?? null,
+      },
+      counts: {
+        jobs: Number(one('SELECT COUNT(*) FROM jobs')),
+        states: Number(one('SELECT COUNT(*) FROM states')),
+        touchcutDays: Number(one('SELECT COUNT(*) FROM touchcut_days')),
+      },
+      retention: this.retention(),
+    };
+  }
+}
