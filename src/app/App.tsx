@@ -7,7 +7,7 @@ import { lazyView, whenIdle } from '../fleet/lazy';
 import { alarmSummary } from './alarms/summary';
 import { AuthMenu } from './auth/UserControls';
 import { ErrorBoundary } from './ErrorBoundary';
-import { AlarmsPage, AuditPage, FleetPage, LoginPage, MachinePage } from './pages';
+import { AlarmsPage, AuditPage, FleetPage, HistoryPage, LoginPage, MachinePage } from './pages';
 import { Link, matchRoute, useLocation } from './router';
 
 // The alarm layer (banner, modal alert, the list it follows): loaded once the first screen shows.
@@ -58,6 +58,9 @@ export function App() {
     case 'alarms':
       body = <AlarmsPage />;
       break;
+    case 'history':
+      body = <HistoryPage />;
+      break;
     case 'login':
       body = <LoginPage />;
       break;
@@ -94,6 +97,9 @@ export function App() {
                   {activeAlarms}
                 </span>
               )}
+            </Link>
+            <Link to="/history" className={route.name === 'history' ? 'active' : ''}>
+              History
             </Link>
             <Link to="/audit" className={route.name === 'audit' ? 'active' : ''}>
               Audit

@@ -10,3 +10,4 @@ export const MachinePage = lazyView(() => import('./MachinePage'), 'MachinePage'
 export const LoginPage = lazyView(() => import('./auth/LoginPage'), 'LoginPage');
 export const AuditPage = lazyView(() => import('./audit/AuditPage'), 'AuditPage');
 export const AlarmsPage = lazyView(() => import('./alarms/AlarmsPage'), 'AlarmsPage');
+export const HistoryPage = lazyView(() => import('./history/HistoryPage'), 'HistoryPage');
