@@ -72,7 +72,7 @@ export function HistoryPage() {
       <UtilisationSection range={range} tick={tick} />
       <JobsSection range={range} tick={tick} machines={machines} families={families} />
       <StopsSection range={range} tick={tick} names={names} />
-      <ShiftReportSection shifts={shifts} today={today} tick={tick} />
+      <ShiftReportSection shifts={shifts} now={now} tick={tick} />
       {isSupervisor && <HistorySettings info={info.data} onSaved={refresh} />}
     </div>
   );

@@ -2,6 +2,7 @@ import { useState } from 'react';
 import { Field, Panel, ScrollRegion, formatDateTime, formatDuration } from '../../ui';
 import { query, shiftReportSchema, type JobCounts, type Shift } from './api';
 import { QueryProblem } from './QueryProblem';
+import { currentShift, localDate } from './range';
 import { ShareBar } from './UtilisationSection';
 import { useQuery } from './useQuery';
 
@@ -18,10 +19,13 @@ function pct(seconds: number, span: number): string {
 }
 
 /** One shift on one date (the server's local time): time per state and jobs per machine. */
-export function ShiftReportSection(props: { shifts: readonly Shift[]; today: string; tick: number }) {
-  const [date, setDate] = useState(props.today);
-  const [picked, setPicked] = useState('');
-  const shift = props.shifts.find((s) => s.name === picked) ?? props.shifts[0];
+export function ShiftReportSection(props: { shifts: readonly Shift[]; now: number; tick: number }) {
+  // Until one is picked: the shift under way (a night shift that began yesterday counts).
+  const auto = currentShift(props.shifts, props.now);
+  const [pickedDate, setDate] = useState<string | null>(null);
+  const [picked, setPicked] = useState<string | null>(null);
+  const date = pickedDate ?? auto?.date ?? localDate(props.now);
+  const shift = props.shifts.find((s) => s.name === (picked ?? auto?.shift)) ?? props.shifts[0];
   const q = shift && date ? query({ date, shift: shift.name }) : null;
   const report = useQuery(
     shiftReportSchema,
@@ -85,7 +89,9 @@ export function ShiftReportSection(props: { shifts: readonly Shift[]; today: str
         <>
           <p className="ui-muted small">
             {r.shift.name}: {formatDateTime(r.from)} to {formatDateTime(r.to)}
-            {r.spanS * 1000 < r.to - r.from && `, counted up to now (${formatDuration(r.spanS)})`}
+            {r.spanS === 0
+              ? ': not begun yet'
+              : r.spanS * 1000 < r.to - r.from && `, counted up to now (${formatDuration(r.spanS)})`}
           </p>
           <ScrollRegion className="history-table-wrap" label="Shift report">
             <table className="history-util history-shift-table">

@@ -33,7 +33,7 @@ afterEach(() => {
 describe('TimelineSection', () => {
   it('draws a strip per machine; a malformed answer is an error on screen and the last good strip stays', async () => {
     const answers = [json(good), json({ ...good, machines: [{ machine: 'x1' }] })];
-    const fetchMock = vi.fn(() => Promise.resolve(answers.shift() ?? json({}, 500)));
+    const fetchMock = vi.fn((_url: string) => Promise.resolve(answers.shift() ?? json({}, 500)));
     vi.stubGlobal('fetch', fetchMock);
     const view = render(<TimelineSection range={{ from, to }} tick={0} now={to} />);
     const strip = await screen.findByTestId('history-strip-x1');

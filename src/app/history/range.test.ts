@@ -1,5 +1,5 @@
 import { afterEach, beforeEach, describe, expect, it, vi } from 'vitest';
-import { localDate, parseLocalDateTime, resolveRange, shiftWindow } from './range';
+import { currentShift, localDate, parseLocalDateTime, resolveRange, shiftWindow } from './range';
 
 const SHIFTS = [
   { name: 'Early', start: '06:00', end: '14:00' },
@@ -81,5 +81,23 @@ describe('range presets', () => {
       from: new Date(2026, 2, 10, 6).getTime(),
       to: new Date(2026, 2, 10, 14).getTime(),
     });
+  });
+
+  it('the shift under way: a night shift after midnight began yesterday', () => {
+    const day = SHIFTS.slice(0, 2);
+    expect(currentShift(day, new Date(2026, 2, 10, 7).getTime())).toEqual({
+      date: '2026-03-10',
+      shift: 'Early',
+    });
+    expect(currentShift(day, new Date(2026, 2, 10, 23).getTime())).toEqual({
+      date: '2026-03-10',
+      shift: 'Night',
+    });
+    expect(currentShift(day, new Date(2026, 2, 11, 2).getTime())).toEqual({
+      date: '2026-03-10',
+      shift: 'Night',
+    });
+    expect(currentShift(day, new Date(2026, 2, 10, 15).getTime())).toBeNull();
+    expect(currentShift([], Date.now())).toBeNull();
   });
 });

@@ -101,3 +101,13 @@ export function resolveRange(
     }
   }
 }
+
+/** The shift under way at `now` and the date it began on (a night shift began yesterday); null: none. */
+export function currentShift(shifts: readonly Shift[], now: number): { date: string; shift: string } | null {
+  for (const date of [localDate(now), localDate(midnight(now, -1))])
+    for (const s of shifts) {
+      const w = shiftWindow(date, s);
+      if (w && w.from <= now && now < w.to) return { date, shift: s.name };
+    }
+  return null;
+}
