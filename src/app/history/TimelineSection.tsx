@@ -1,4 +1,4 @@
-import { useMemo, useState } from 'react';
+import { useLayoutEffect, useMemo, useRef, useState } from 'react';
 import { Panel, ScrollRegion, formatDateTime, formatDuration } from '../../ui';
 import { dateTimeFormat } from '../../ui/locale';
 import { query, statesSchema } from './api';
@@ -12,7 +12,8 @@ const W = 1000;
 
 function tickLabel(t: number, day: boolean, multiDay: boolean): string {
   if (day && multiDay) return dateTimeFormat({ weekday: 'short', day: 'numeric' }).format(t);
-  return dateTimeFormat({ hour: '2-digit', minute: '2-digit' }).format(t);
+  if (new Date(t).getMinutes() !== 0) return dateTimeFormat({ hour: 'numeric', minute: '2-digit' }).format(t);
+  return dateTimeFormat({ hour: 'numeric' }).format(t);
 }
 
 export function segmentText(machineName: string, s: Segment): string {
@@ -41,6 +42,14 @@ export function TimelineSection(props: { range: Range | null; tick: number; now:
   );
   const ticks = useMemo(() => (data ? hourTicks(data.from, data.to, 8) : []), [data]);
   const multiDay = data ? data.to - data.from > 86_400_000 : false;
+  // A narrow screen scrolls the strips: bring "now" into view rather than the range's start.
+  const scroller = useRef<HTMLDivElement>(null);
+  useLayoutEffect(() => {
+    const el = scroller.current;
+    if (!el || !data || el.scrollWidth <= el.clientWidth) return;
+    const at = Math.min(1, Math.max(0, (now - data.from) / (data.to - data.from)));
+    el.scrollLeft = Math.max(0, at * el.scrollWidth - el.clientWidth * 0.9);
+  }, [data, now]);
 
   return (
     <Panel
@@ -72,7 +81,7 @@ export function TimelineSection(props: { range: Range | null; tick: number; now:
       )}
       {data && strips.length === 0 && <p className="ui-muted">No machine to show.</p>}
       {data && strips.length > 0 && (
-        <ScrollRegion className="history-timeline-scroll" label="Timeline, per machine">
+        <ScrollRegion className="history-timeline-scroll" label="Timeline, per machine" scrollRef={scroller}>
           <div className="history-timeline">
             <div className="history-ticks" aria-hidden="true">
               {ticks.map((t) => (

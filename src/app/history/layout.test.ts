@@ -90,6 +90,12 @@ describe('hourTicks', () => {
     expect(ticks.filter((t) => t.day).map((t) => new Date(t.t).getDate())).toEqual([11]);
   });
 
+  it('a short range: ticks at whole minutes', () => {
+    const from = new Date(2026, 2, 10, 14, 7).getTime();
+    const ticks = hourTicks(from, from + 13 * 60_000, 8);
+    expect(ticks.map((t) => new Date(t.t).getMinutes())).toEqual([10, 15, 20]);
+  });
+
   it('a week: one tick a day at local midnight', () => {
     const from = new Date(2026, 2, 3, 10, 30).getTime();
     const ticks = hourTicks(from, from + 7 * 24 * H, 8);

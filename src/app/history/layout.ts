@@ -79,31 +79,26 @@ export interface Tick {
   day: boolean;
 }
 
-const STEPS_H = [1, 2, 3, 4, 6, 12, 24, 48, 72, 168, 336, 720];
+const STEPS_MIN = [5, 10, 15, 30, 60, 120, 180, 240, 360, 720, 1440, 2880, 4320, 10080, 20160, 43200];
 
-/** Ticks at whole local hours (or days) inside [from, to], at most `maxTicks`. */
+/** Ticks at whole local minutes, hours or days inside [from, to], at most `maxTicks`. */
 export function hourTicks(from: number, to: number, maxTicks: number): Tick[] {
   const span = to - from;
   if (!(span > 0) || maxTicks < 1) return [];
-  const step = STEPS_H.find((h) => span / (h * 3_600_000) <= maxTicks) ?? STEPS_H[STEPS_H.length - 1]!;
+  const step = STEPS_MIN.find((m) => span / (m * 60_000) <= maxTicks) ?? STEPS_MIN[STEPS_MIN.length - 1]!;
   const start = new Date(from);
+  const [y, mo, d] = [start.getFullYear(), start.getMonth(), start.getDate()];
   const out: Tick[] = [];
-  if (step < 24) {
-    const base = new Date(start.getFullYear(), start.getMonth(), start.getDate());
-    for (let h = 0; ; h += step) {
-      const t = new Date(base.getFullYear(), base.getMonth(), base.getDate(), h).getTime();
-      if (t > to) break;
-      if (t >= from) out.push({ t, left: (t - from) / span, day: new Date(t).getHours() === 0 });
-      if (h > 24 * 500) break;
-    }
-  } else {
-    const days = step / 24;
-    for (let d = 0; ; d += days) {
-      const t = new Date(start.getFullYear(), start.getMonth(), start.getDate() + d).getTime();
-      if (t > to) break;
-      if (t >= from) out.push({ t, left: (t - from) / span, day: true });
-      if (d > 500) break;
-    }
+  // Counted on the local clock from the start's midnight (a tick is what the clock says, across DST).
+  const at = (k: number) =>
+    step < 1440
+      ? new Date(y, mo, d, 0, k * step).getTime()
+      : new Date(y, mo, d + (k * step) / 1440).getTime();
+  for (let k = 0; k < 5000; k++) {
+    const t = at(k);
+    if (t > to) break;
+    const c = new Date(t);
+    if (t >= from) out.push({ t, left: (t - from) / span, day: c.getHours() === 0 && c.getMinutes() === 0 });
   }
   return out;
 }
