@@ -1,3 +1,4 @@
+import AxeBuilder from '@axe-core/playwright';
 import { expect, test, type APIRequestContext } from '@playwright/test';
 import { resetSimulators, simulator } from './simulators';
 
@@ -71,5 +72,29 @@ test('the History page shows a job that ran while no page was open', async ({ pa
     await page.setViewportSize({ width: 390, height: 844 });
     await expect(strip.locator('rect[data-state="running"]').first()).toBeAttached();
     await page.screenshot({ path: info.outputPath('history-phone.png'), fullPage: true });
+  }
+});
+
+test('the History page has no serious accessibility problem (axe, light and dark)', async ({ page }) => {
+  await page.goto('/');
+  await page.getByRole('navigation', { name: 'Main' }).getByRole('link', { name: 'History' }).click();
+  await expect(page).toHaveURL(/\/history$/);
+  await expect(page.getByTestId(`history-strip-${ID}`)).toBeVisible();
+  await expect(page.getByTestId('history-settings')).toBeVisible();
+  for (const scheme of ['light', 'dark'] as const) {
+    await page.emulateMedia({ colorScheme: scheme });
+    const results = await new AxeBuilder({ page })
+      .withTags(['wcag2a', 'wcag2aa', 'wcag21a', 'wcag21aa', 'wcag22aa', 'best-practice'])
+      .analyze();
+    const bad = results.violations
+      .filter((v) => v.impact === 'serious' || v.impact === 'critical')
+      .map(
+        (v) =>
+          `${v.id}: ${v.nodes
+            .map((n) => n.target.join(' '))
+            .slice(0, 3)
+            .join(' | ')}`,
+      );
+    expect.soft(bad, `${scheme} theme`).toEqual([]);
   }
 });
