@@ -7,7 +7,7 @@ import { lazyView, whenIdle } from '../fleet/lazy';
 import { alarmSummary } from './alarms/summary';
 import { AuthMenu } from './auth/UserControls';
 import { ErrorBoundary } from './ErrorBoundary';
-import { AlarmsPage, AuditPage, FleetPage, LoginPage, MachinePage, WallPage } from './pages';
+import { AlarmsPage, AuditPage, FleetPage, HistoryPage, LoginPage, MachinePage, WallPage } from './pages';
 import { Link, matchRoute, useLocation } from './router';
 import { Shortcuts } from './shortcuts/lazy';
 
@@ -69,6 +69,9 @@ export function App() {
     case 'alarms':
       body = <AlarmsPage />;
       break;
+    case 'history':
+      body = <HistoryPage />;
+      break;
     case 'login':
       body = <LoginPage />;
       break;
@@ -105,6 +108,9 @@ export function App() {
                   {activeAlarms}
                 </span>
               )}
+            </Link>
+            <Link to="/history" className={route.name === 'history' ? 'active' : ''}>
+              History
             </Link>
             <Link to="/audit" className={route.name === 'audit' ? 'active' : ''}>
               Audit

@@ -11,3 +11,4 @@ export const LoginPage = lazyView(() => import('./auth/LoginPage'), 'LoginPage')
 export const AuditPage = lazyView(() => import('./audit/AuditPage'), 'AuditPage');
 export const AlarmsPage = lazyView(() => import('./alarms/AlarmsPage'), 'AlarmsPage');
 export const WallPage = lazyView(() => import('./wall/WallPage'), 'WallPage');
+export const HistoryPage = lazyView(() => import('./history/HistoryPage'), 'HistoryPage');

@@ -63,6 +63,7 @@ export type Route =
   | { name: 'machine'; id: string; tab: string | null; kiosk?: true }
   | { name: 'audit' }
   | { name: 'alarms' }
+  | { name: 'history' }
   | { name: 'login' }
   | { name: 'wall' }
   | { name: 'family-page'; kind: string; page: string }
@@ -92,6 +93,7 @@ export function matchRoute(pathname: string, search = ''): Route {
   }
   if (parts[0] === 'audit' && parts.length === 1) return { name: 'audit' };
   if (parts[0] === 'alarms' && parts.length === 1) return { name: 'alarms' };
+  if (parts[0] === 'history' && parts.length === 1) return { name: 'history' };
   if (parts[0] === 'login' && parts.length === 1) return { name: 'login' };
   if (parts[0] === 'wall' && parts.length === 1) return { name: 'wall' };
   if (parts.length === 2 && parts[0] && parts[1])
