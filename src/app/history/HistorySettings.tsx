@@ -92,28 +92,8 @@ export function HistorySettings(props: { info: HistoryInfo | null; onSaved: () =
                   />
                 )}
               </Field>
-              <Field label="Start">
-                {(id) => (
-                  <input
-                    id={id}
-                    className="ui-input"
-                    type="time"
-                    value={s.start}
-                    onChange={(e) => setShift(i, { start: e.target.value })}
-                  />
-                )}
-              </Field>
-              <Field label="End">
-                {(id) => (
-                  <input
-                    id={id}
-                    className="ui-input"
-                    type="time"
-                    value={s.end}
-                    onChange={(e) => setShift(i, { end: e.target.value })}
-                  />
-                )}
-              </Field>
+              <TimeField label="Start" value={s.start} onChange={(v) => setShift(i, { start: v })} />
+              <TimeField label="End" value={s.end} onChange={(v) => setShift(i, { end: v })} />
               <Button
                 onClick={() => setDraft({ ...draft, shifts: draft.shifts.filter((_, j) => j !== i) })}
                 aria-label={`Remove shift ${s.name}`}
@@ -180,5 +160,22 @@ export function HistorySettings(props: { info: HistoryInfo | null; onSaved: () =
         </Notice>
       )}
     </Panel>
+  );
+}
+
+/** A shift's start or end (HH:MM, the server's local time). */
+function TimeField(props: { label: string; value: string; onChange: (v: string) => void }) {
+  return (
+    <Field label={props.label}>
+      {(id) => (
+        <input
+          id={id}
+          className="ui-input"
+          type="time"
+          value={props.value}
+          onChange={(e) => props.onChange(e.target.value)}
+        />
+      )}
+    </Field>
   );
 }
