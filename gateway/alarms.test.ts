@@ -89,6 +89,23 @@ describe('the alarm centre', () => {
     expect(events.filter((e) => e[0] === 'alarm.acknowledged')).toHaveLength(1);
   });
 
+  it('a flame sent again after the last one was acknowledged is a new alarm, even before a poll cleared it', () => {
+    const { centre, clock } = setup();
+    centre.observe(laser, sum('running', []), { ...sum('alarm', [FLAME]), raised: ['xtool-flame'] });
+    const first = centre.query({ machines: null })[0]?.id ?? '';
+    centre.acknowledge(first, 'olga');
+    clock.t += 3000;
+    // The same open record seen again by a poll-like summary: nothing new.
+    centre.observe(laser, sum('alarm', [FLAME]), sum('alarm', [FLAME]));
+    expect(centre.query({ machines: null })).toHaveLength(1);
+    // The laser sends the flame again (an event): a new, unacknowledged record; the old one ends.
+    centre.observe(laser, sum('alarm', [FLAME]), { ...sum('alarm', [FLAME]), raised: ['xtool-flame'] });
+    const all = centre.query({ machines: null });
+    expect(all).toHaveLength(2);
+    expect(all[0]).toMatchObject({ key: 'xtool-flame', ackBy: null, clearedAt: null });
+    expect(centre.get(first)).toMatchObject({ ackBy: 'olga', clearedAt: clock.t });
+  });
+
   it('an acknowledgement by key before the watch saw the alarm marks the record it opens', () => {
     const { centre, clock } = setup();
     expect(centre.acknowledgeKey('laser-1', 'xtool-flame', 'olga')).toBe('early');

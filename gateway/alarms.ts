@@ -146,8 +146,12 @@ export class AlarmCentre {
     // The family's alarms: only when it said (an offline machine keeps its last known).
     if (next.alarms && next.state !== 'offline') {
       const active = new Set<string>();
+      const events = new Set(next.raised ?? []);
       for (const a of next.alarms) {
         active.add(a.key);
+        // Raised again as an event after a person acknowledged it: a new alarm, not the old one.
+        const open = events.has(a.key) ? this.openRecord(m.id, a.key) : undefined;
+        if (open && open.ackAt !== null) changed = this.clear(m.id, (r) => r === open, t) || changed;
         changed = this.raise(m, a) || changed;
       }
       changed = this.clear(m.id, (r) => r.key !== OFFLINE_KEY && !active.has(r.key), t) || changed;

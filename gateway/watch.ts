@@ -108,7 +108,11 @@ export class MachineWatch {
     const { raise, ...part } = news;
     const prev = this.summary;
     const next: WatchSummary = { ...prev, ...part };
-    if (raise?.length) next.alarms = withRaised(part.alarms ?? prev.alarms, raise);
+    delete next.raised;
+    if (raise?.length) {
+      next.alarms = withRaised(part.alarms ?? prev.alarms, raise);
+      next.raised = raise.map((a) => a.key);
+    }
     this.summary = next;
     if (next.state !== 'offline') {
       this.failures = 0;

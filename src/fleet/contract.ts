@@ -194,6 +194,11 @@ export interface WatchSummary {
    */
   alarms?: WatchAlarm[];
   /**
+   * The keys a frame raised as a new event in this summary (a flame sent by the laser): a new
+   * occurrence even while an acknowledged record of the same key is still open. Set by the watch.
+   */
+  raised?: string[];
+  /**
    * How far the job is, 0..1, when the family's watch reads it (TouchCut, Duet); absent or null
    * when unknown. The job history keeps the last value a job had.
    */
