@@ -54,7 +54,7 @@ export interface AlarmCentreOptions {
 
 export const OFFLINE_KEY = 'offline-during-job';
 /** An acknowledgement given before the watch saw the alarm (a page saw it first) waits this long. */
-const EARLY_ACK_MS = 60_000;
+const EARLY_ACK_MS = 10_000;
 const SEVERITY_RANK: Record<AlarmSeverity, number> = { critical: 2, warning: 1, info: 0 };
 const MAX_TEXT = 500;
 
@@ -227,7 +227,7 @@ export class AlarmCentre {
   /**
    * Acknowledges a machine's alarm by its key (a page acknowledged an alarm it saw itself): the
    * latest unacknowledged record of that key; when the watch has not seen it yet, the record it
-   * opens within a minute is born acknowledged.
+   * opens within 10 s is born acknowledged.
    */
   acknowledgeKey(machine: string, key: string, by: string): AlarmRecord | 'early' {
     const r = [...this.records]

@@ -62,6 +62,8 @@ export function describeChange(
 
 /** Polls or stream openings that fail in a row before the watch calls the machine offline. */
 export const OFFLINE_AFTER = 2;
+/** The first try to open a watched stream again after it ended or failed (ms). */
+export const STREAM_RETRY_FIRST_MS = 1000;
 
 /** `current` with the alarms a frame raised added (by key; a frame never clears one). */
 function withRaised(current: WatchAlarm[] | undefined, raised: WatchAlarm[]): WatchAlarm[] {
@@ -77,6 +79,7 @@ export class MachineWatch {
   private stopped = false;
   private inFlight = false;
   private failures = 0;
+  private streamRetries = 0;
   /** When the last good summary came (ms). */
   lastSeen: number | null = null;
 
@@ -178,7 +181,10 @@ export class MachineWatch {
         },
       );
       if (this.stopped) release();
-      else this.release = release;
+      else {
+        this.release = release;
+        this.streamRetries = 0;
+      }
     } catch {
       // Could not open it now. Without a poll, that is how the watch learns the machine is gone.
       if (!this.decl.poll && !this.stopped) this.unreachable();
@@ -186,9 +192,15 @@ export class MachineWatch {
     }
   }
 
+  /**
+   * The stream again: after 1 s the first time (a controller that restarted or dropped its socket
+   * is listened to again before its next event, a flame), then every `everyMs`.
+   */
   private retryStream(): void {
     if (this.stopped) return;
-    const t = setTimeout(() => void this.holdStream(), this.decl.everyMs);
+    const wait =
+      this.streamRetries++ === 0 ? Math.min(STREAM_RETRY_FIRST_MS, this.decl.everyMs) : this.decl.everyMs;
+    const t = setTimeout(() => void this.holdStream(), wait);
     t.unref?.();
   }
 }

@@ -70,9 +70,11 @@ export function criticalAlarms(
       recordId: r.id,
     });
   }
-  // The list has any record of it (open, or acknowledged by someone): the list decides.
+  // The list has it unacknowledged: shown from the list. An acknowledged record of the same key may
+  // be an earlier alarm (the list can miss a flame while the laser's socket reconnects): this
+  // page's own alarm stays until it is acknowledged here, or seen acknowledged elsewhere (feed.ts).
   for (const l of local) {
-    if (records?.some((r) => r.machine === l.machineId && r.key === l.key)) continue;
+    if (records?.some((r) => r.machine === l.machineId && r.key === l.key && r.ackAt === null)) continue;
     out.push({ ...l, blocking: true, recordId: null });
   }
   return out;

@@ -106,13 +106,14 @@ describe('critical alarms on every page', () => {
     ]);
   });
 
-  it('adds what only this page has seen, until the list has it (open or acknowledged)', () => {
+  it('adds what only this page has seen, until the list has it unacknowledged', () => {
     expect(criticalAlarms(null, local).map((b) => [b.key, b.recordId, b.blocking])).toEqual([
       ['xtool-flame', null, true],
     ]);
     expect(criticalAlarms([], local)).toHaveLength(1);
+    // An acknowledged record of the key may be an earlier flame: this page's own stays shown.
     const acked = rec('7', { severity: 'critical', key: 'xtool-flame', ackAt: 9, ackBy: 'olga' });
-    expect(criticalAlarms([acked], local)).toEqual([]);
+    expect(criticalAlarms([acked], local).map((b) => [b.key, b.recordId])).toEqual([['xtool-flame', null]]);
     const open = rec('8', { severity: 'critical', key: 'xtool-flame', blocking: true });
     expect(criticalAlarms([open], local).map((b) => b.recordId)).toEqual(['8']);
   });
