@@ -115,34 +115,16 @@ export function HistorySettings(props: { info: HistoryInfo | null; onSaved: () =
         <fieldset>
           <legend>Keep the history</legend>
           <div className="ui-row">
-            <Field label="Jobs, days" hint="1 to 3650">
-              {(id) => (
-                <input
-                  id={id}
-                  className="ui-input history-days"
-                  type="number"
-                  min={1}
-                  max={3650}
-                  step={1}
-                  value={draft.jobsDays}
-                  onChange={(e) => setDraft({ ...draft, jobsDays: e.target.value })}
-                />
-              )}
-            </Field>
-            <Field label="State changes, days" hint="1 to 3650">
-              {(id) => (
-                <input
-                  id={id}
-                  className="ui-input history-days"
-                  type="number"
-                  min={1}
-                  max={3650}
-                  step={1}
-                  value={draft.statesDays}
-                  onChange={(e) => setDraft({ ...draft, statesDays: e.target.value })}
-                />
-              )}
-            </Field>
+            <DaysField
+              label="Jobs, days"
+              value={draft.jobsDays}
+              onChange={(v) => setDraft({ ...draft, jobsDays: v })}
+            />
+            <DaysField
+              label="State changes, days"
+              value={draft.statesDays}
+              onChange={(v) => setDraft({ ...draft, statesDays: v })}
+            />
           </div>
         </fieldset>
         <div className="ui-row">
@@ -172,6 +154,26 @@ function TimeField(props: { label: string; value: string; onChange: (v: string) 
           id={id}
           className="ui-input"
           type="time"
+          value={props.value}
+          onChange={(e) => props.onChange(e.target.value)}
+        />
+      )}
+    </Field>
+  );
+}
+
+/** How many days a kind of record is kept (1 to 3650). */
+function DaysField(props: { label: string; value: string; onChange: (v: string) => void }) {
+  return (
+    <Field label={props.label} hint="1 to 3650">
+      {(id) => (
+        <input
+          id={id}
+          className="ui-input history-days"
+          type="number"
+          min={1}
+          max={3650}
+          step={1}
           value={props.value}
           onChange={(e) => props.onChange(e.target.value)}
         />
