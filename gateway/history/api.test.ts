@@ -4,19 +4,13 @@ import { afterEach, describe, expect, it } from 'vitest';
 import type { WatchSummary } from '../../src/fleet/contract';
 import type { MachineEntry } from '../machines';
 import { consoleFetch, login, startGateway, tempDir, testFamily, user, writeJson } from '../test-util';
+import { S } from './summary.test-util';
 
 /** `/api/history/*` through the real gateway: who sees what, CSV safety, settings, a missing store. */
 
 const cleanups: Array<() => Promise<void> | void> = [];
 afterEach(async () => {
   for (const c of cleanups.splice(0).reverse()) await c();
-});
-
-const S = (state: WatchSummary['state'], more: Partial<WatchSummary> = {}): WatchSummary => ({
-  state,
-  alarm: null,
-  job: null,
-  ...more,
 });
 
 const entry = (id: string, name: string): MachineEntry => ({

@@ -2,6 +2,7 @@ import { afterEach, describe, expect, it } from 'vitest';
 import type { WatchSummary } from '../../src/fleet/contract';
 import type { MachineEntry } from '../machines';
 import { consoleFetch, startGateway, tempDir, testFamily } from '../test-util';
+import { S } from './summary.test-util';
 
 /**
  * A simulated night through the real gateway on a fake clock: three machines run, pause, raise
@@ -12,13 +13,6 @@ import { consoleFetch, startGateway, tempDir, testFamily } from '../test-util';
 const cleanups: Array<() => Promise<void> | void> = [];
 afterEach(async () => {
   for (const c of cleanups.splice(0).reverse()) await c();
-});
-
-const S = (state: WatchSummary['state'], more: Partial<WatchSummary> = {}): WatchSummary => ({
-  state,
-  alarm: null,
-  job: null,
-  ...more,
 });
 
 /** Local time on the 10th (day 0) or the 11th (day 1) of March 2026. */

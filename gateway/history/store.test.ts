@@ -8,6 +8,7 @@ import { createLogger, type Logger } from '../log';
 import { tempDir } from '../test-util';
 import { MIGRATIONS, NewerSchemaError, openHistoryDb, schemaVersion } from './db';
 import { HistoryStore, type HistoryMachine } from './store';
+import { S } from './summary.test-util';
 
 /** The history store against a real SQLite file in a temporary folder, on an injected clock. */
 
@@ -39,13 +40,6 @@ function setup(start = Date.UTC(2026, 2, 10, 12)) {
 }
 
 const M: HistoryMachine = { id: 'm1', name: 'Laser', kind: 'xtool' };
-const S = (state: WatchSummary['state'], more: Partial<WatchSummary> = {}): WatchSummary => ({
-  state,
-  alarm: null,
-  job: null,
-  ...more,
-});
-
 /** Feeds summaries at times (ms after the start): as the watch does, each with the one before. */
 function feed(
   store: HistoryStore,

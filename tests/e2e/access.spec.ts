@@ -2,7 +2,7 @@ import { mkdtempSync, readFileSync, rmSync, writeFileSync } from 'node:fs';
 import { tmpdir } from 'node:os';
 import { join } from 'node:path';
 import { expect, test, type Browser, type Page } from '@playwright/test';
-import { Children, freePort, waitFor, writeUsersFile } from './own-server';
+import { Children, freePort, signIn as signInAs, waitFor, writeUsersFile } from './own-server';
 
 /**
  * Access control end to end, through the real gateway (vite preview) with a users file, against
@@ -100,22 +100,8 @@ test.describe('access control', () => {
     await control('button');
   }
 
-  async function signIn(browser: Browser, name: keyof typeof USERS): Promise<Page> {
-    const ctx = await browser.newContext({ baseURL: base });
-    const page = await ctx.newPage();
-    await page.goto('/');
-    await expect(page.getByTestId('login-form')).toBeVisible();
-    await expect(page.getByTestId('open-mode-banner')).toHaveCount(0);
-    await page.getByLabel('Name').fill(name);
-    await page.getByLabel('Password').fill(USERS[name].password);
-    // Signing in reloads the page (a fresh start for this user): wait for that load, or a goto
-    // right after would race it.
-    const reloaded = page.waitForEvent('load');
-    await page.getByRole('button', { name: 'Sign in' }).click();
-    await reloaded;
-    await expect(page.getByTestId('user-role')).toHaveText(USERS[name].role);
-    return page;
-  }
+  const signIn = (browser: Browser, name: keyof typeof USERS): Promise<Page> =>
+    signInAs(browser, base, name, USERS[name]);
 
   test('a viewer sees the running job but has no controls, and the gateway refuses a crafted request', async ({
     browser,

@@ -4,7 +4,7 @@ import type { AddressInfo } from 'node:net';
 import { tmpdir } from 'node:os';
 import { join } from 'node:path';
 import { expect, test, type Browser, type Page } from '@playwright/test';
-import { Children, freePort, waitFor, writeUsersFile } from './own-server';
+import { Children, freePort, signIn as signInAs, waitFor, writeUsersFile } from './own-server';
 
 /**
  * The alarm centre end to end, on a console of its own (the production server with a users file,
@@ -86,19 +86,8 @@ test.describe('alarm centre', () => {
     expect(r.status).toBe(200);
   }
 
-  async function signIn(browser: Browser, name: keyof typeof USERS, path: string): Promise<Page> {
-    const ctx = await browser.newContext({ baseURL: base });
-    const page = await ctx.newPage();
-    await page.goto(path);
-    await expect(page.getByTestId('login-form')).toBeVisible();
-    await page.getByLabel('Name').fill(name);
-    await page.getByLabel('Password').fill(USERS[name].password);
-    const reloaded = page.waitForEvent('load');
-    await page.getByRole('button', { name: 'Sign in' }).click();
-    await reloaded;
-    await expect(page.getByTestId('user-role')).toHaveText(USERS[name].role);
-    return page;
-  }
+  const signIn = (browser: Browser, name: keyof typeof USERS, path: string): Promise<Page> =>
+    signInAs(browser, base, name, USERS[name], path);
 
   test('a flame with no page open reaches the webhook and the alarm centre; an operator acknowledges it on the Duet page', async ({
     browser,

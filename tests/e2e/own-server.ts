@@ -1,6 +1,7 @@
 import { spawn, type ChildProcess } from 'node:child_process';
 import { writeFileSync } from 'node:fs';
 import { createServer } from 'node:net';
+import { expect, type Browser, type Page } from '@playwright/test';
 import bcrypt from 'bcryptjs';
 
 /**
@@ -78,4 +79,29 @@ export function writeUsersFile(
       })),
     }),
   );
+}
+
+/**
+ * Signs a user in on a new browser context of the spec's own console at `path` (its login form),
+ * and waits for the reload that signing in makes, so that a `goto` right after does not race it.
+ */
+export async function signIn(
+  browser: Browser,
+  base: string,
+  name: string,
+  user: { role: string; password: string },
+  path = '/',
+): Promise<Page> {
+  const ctx = await browser.newContext({ baseURL: base });
+  const page = await ctx.newPage();
+  await page.goto(path);
+  await expect(page.getByTestId('login-form')).toBeVisible();
+  await expect(page.getByTestId('open-mode-banner')).toHaveCount(0);
+  await page.getByLabel('Name').fill(name);
+  await page.getByLabel('Password').fill(user.password);
+  const reloaded = page.waitForEvent('load');
+  await page.getByRole('button', { name: 'Sign in' }).click();
+  await reloaded;
+  await expect(page.getByTestId('user-role')).toHaveText(user.role);
+  return page;
 }
