@@ -4,12 +4,19 @@ import { formatAge, formatDateTime } from '../ui';
 import { STALE_MS } from './status';
 
 /**
- * How old a machine's data is ("updated 3 s ago", "stale · 12 s ago"): the one part of a tile or
- * a machine page that changes every second, so only it re-renders on the shared clock's tick.
+ * Data younger than this reads "live": a machine answering every second or two keeps one steady
+ * label instead of a text that changes (and lays the page out) every second (issue 16).
+ */
+export const LIVE_MS = 3000;
+
+/**
+ * How old a machine's data is ("live", "updated 5 s ago", "stale · 12 s ago"): the one part of a
+ * tile or a machine page that follows the shared clock's tick, so only it re-renders then.
  */
 export function Age({ at, testId = 'data-age' }: { at: number | null; testId?: string }) {
   const now = useNow(1000);
   const stale = at === null || now - at > STALE_MS;
+  const live = at !== null && now - at < LIVE_MS;
   return (
     <span
       className={stale ? 'age stale' : 'age'}
@@ -23,7 +30,9 @@ export function Age({ at, testId = 'data-age' }: { at: number | null; testId?: s
         ? 'no data yet'
         : stale
           ? `stale · ${formatAge(at, now)}`
-          : `updated ${formatAge(at, now)}`}
+          : live
+            ? 'live'
+            : `updated ${formatAge(at, now)}`}
     </span>
   );
 }

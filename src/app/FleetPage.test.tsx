@@ -77,7 +77,7 @@ describe('FleetPage', () => {
     expect(screen.getByTestId('summary-running').textContent).toBe('1 running');
   });
 
-  it('marks data older than 10 s as stale', () => {
+  it('reads live while the data is fresh, then its age, and marks data older than 10 s as stale', () => {
     const m = { id: 'stale-one', name: 'Stale', kind: 'duet' as const, simulated: false };
     const rt = addMachine(m);
     rt.snapshot.setState({ link: 'online', activity: 'idle', activityLabel: 'Idle', updatedAt: Date.now() });
@@ -85,8 +85,13 @@ describe('FleetPage', () => {
     render(<FleetPage />);
     const age = () => within(screen.getByTestId('tile-stale-one')).getByTestId('data-age');
     expect(age().dataset.stale).toBe('false');
+    expect(age().textContent).toBe('live');
     act(() => {
-      vi.advanceTimersByTime(11_000);
+      vi.advanceTimersByTime(5_000);
+    });
+    expect(age().textContent).toBe('updated 5 sec. ago');
+    act(() => {
+      vi.advanceTimersByTime(6_000);
     });
     expect(age().dataset.stale).toBe('true');
     expect(age().textContent).toContain('stale');

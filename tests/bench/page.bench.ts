@@ -451,8 +451,8 @@ async function idleWindow(page: Page, cdp: CDPSession, name: string, hidden: boo
     notes.push(
       `${round(total.layoutsPerS, 2)} layouts/s is ${round(total.layoutsPerS / 60, 3)} per frame at 60 Hz: ` +
         `the page lays out when its text changes (${mutationBatchesPerS} DOM mutation batches/s measured after ` +
-        'the window): the data-age labels tick every second (src/app/Age.tsx, useNow(1000)) and tiles ' +
-        're-render at the data rate (progress %, time left, labels)',
+        'the window): tiles re-render at the data rate (progress %, time left, labels; the data-age label ' +
+        'reads "live" while answers come, src/app/Age.tsx, and ticks only when they are late)',
     );
   if (total.busyPct > TARGET_BUSY_PCT)
     notes.push(
