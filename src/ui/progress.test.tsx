@@ -26,13 +26,12 @@ describe('ProgressBar', () => {
     expect(bar.querySelector('span')?.getAttribute('style')).toBeNull();
   });
 
-  it('the stylesheet animates and transitions the bar with transform only, and not with reduced motion', () => {
+  it('the stylesheet neither animates nor transitions anything: an idle page paints only when its data changes', () => {
     const css = readFileSync(path.join(import.meta.dirname, 'theme.css'), 'utf8');
-    const keyframes = /@keyframes ui-indet \{([\s\S]*?)\n\}/.exec(css)?.[1] ?? '';
-    expect(keyframes).toContain('transform');
-    expect(keyframes).not.toMatch(/\b(left|right|width|margin|inset)\s*:/);
-    for (const m of css.matchAll(/transition:\s*([^;]+);/g))
-      expect(m[1]).not.toMatch(/\b(width|height|left|top)\b/);
-    expect(css).toMatch(/prefers-reduced-motion: reduce\)\s*\{[\s\S]*?animation: none/);
+    // An endless sweep (the indeterminate bar had one) or a transition run on every answer keeps
+    // the renderer painting frames on a page where nothing but numbers changes.
+    expect(css).not.toMatch(/@keyframes|\banimation(-name)?\s*:|\btransition(-property)?\s*:/);
+    // The unknown-progress bar is told apart by its look (hatched), not by motion.
+    expect(css).toMatch(/\.ui-progress\.indeterminate > span \{[^}]*repeating-linear-gradient/);
   });
 });
