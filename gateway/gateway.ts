@@ -8,6 +8,7 @@ import { BodyTooLarge, clientAddress, rejectUpgrade, sendJson } from './http-uti
 import type { MachinesConfig } from './machines';
 import { createHttpProxy, READ_METHODS } from './proxy-http';
 import { createWsProxy } from './proxy-ws';
+import { createReadSocket, READ_SOCKET_PATH } from './read-socket';
 import { type AlarmCentre, createAlarmStores } from './alarms';
 import { MachineWatch } from './watch';
 import { createHistory, type History } from './history';
@@ -48,6 +49,8 @@ export interface Gateway {
   readonly history: History;
   /** Counters of a machine's HTTP upstream (upstream-http.ts): benchmark, tests. */
   upstreamStats(id: string): UpstreamStats | null;
+  /** Pages' read sockets open now (read-socket.ts). */
+  readSockets(): number;
   /** Shared controller sockets of a machine (streams.ts): browser sockets joined, hubs open. */
   streamStats(id: string): { joined: number; open: number };
 }
@@ -85,7 +88,9 @@ export function createGateway(opts: GatewayOptions): Gateway {
   // The alarm centre (alarms.ts) and the webhook that sends alarms on (settings: settings.json).
   const stores = createAlarmStores(ctx);
   const { alarms, webhook } = stores;
-  const { proxy, watchRead } = createHttpProxy(ctx);
+  const { proxy, watchRead, socketRead } = createHttpProxy(ctx);
+  // The page's read socket (read-socket.ts): its polls over one WebSocket, checked as over HTTP.
+  const readSocket = createReadSocket(ctx, { read: socketRead });
   // The production history (history/): jobs and states from the watch, commands from the audit records.
   const history = createHistory({
     dataDir: ctx.dataDir,
@@ -201,6 +206,10 @@ export function createGateway(opts: GatewayOptions): Gateway {
 
   function upgrade(req: IncomingMessage, socket: Duplex, head: Buffer): boolean {
     const url = req.url ?? '/';
+    if (url === READ_SOCKET_PATH || url.startsWith(`${READ_SOCKET_PATH}?`)) {
+      readSocket.upgrade(req, socket, head);
+      return true;
+    }
     const match = /^\/machines\/([^/?#]+)(.*)$/.exec(url);
     if (!match) return false;
     let id = '';
@@ -246,7 +255,7 @@ export function createGateway(opts: GatewayOptions): Gateway {
   }
 
   function goingAway(reason: string): number {
-    let told = 0;
+    let told = readSocket.goingAway(reason);
     for (const live of [...ctx.liveSockets.values()]) {
       live.close(1001, reason);
       told++;
@@ -267,6 +276,7 @@ export function createGateway(opts: GatewayOptions): Gateway {
     history,
     upstreamStats: ctx.upstreamStats,
     streamStats: (id: string) => ctx.streams.stats(id),
+    readSockets: () => readSocket.open,
   };
 }
 

@@ -766,5 +766,82 @@ export function createHttpProxy(ctx: GatewayContext) {
     return { status: a.status, body: a.body.toString('utf8'), gateway };
   }
 
-  return { proxy, watchRead };
+  /**
+   * A read a page sends over its read socket (read-socket.ts) instead of an HTTP GET: the same
+   * checks as that GET (who the socket's user is now, the family's classification, the role), the
+   * same way upstream (held session, secrets, one upstream per machine, shared reads), and the
+   * answer captured whole, at most `cap` bytes. Never a command: a request the family classifies
+   * as one is not sent (`fallback`), the page sends it over HTTP, where commands are proven and
+   * audited.
+   */
+  async function socketRead(
+    from: IncomingMessage,
+    m: MachineEntry,
+    rest: string,
+    browserHeaders: Record<string, string>,
+    cap: number,
+  ): Promise<SocketReadAnswer> {
+    const { res, answer } = captureAnswer(cap);
+    const settled = async (): Promise<SocketReadAnswer> => {
+      try {
+        const a = await answer;
+        return { status: a.status, headers: a.headers, body: a.body };
+      } catch (e) {
+        // Larger than the socket takes, or cut: the page reads it over HTTP (it streams there).
+        return { fallback: e instanceof Error ? e.message : String(e) };
+      }
+    };
+    const t = splitTarget(rest);
+    if ('error' in t) {
+      sendJson(res, 400, { error: t.error });
+      return settled();
+    }
+    const decision = classify(m, { method: 'GET', path: t.path, query: t.query });
+    if (decision.command) return { fallback: 'a command goes over HTTP' };
+    const w = who(from, false);
+    const v = authorize(w, m, decision);
+    if (!v.ok) {
+      if (v.status === 403)
+        record({
+          type: 'refused',
+          result: 'refused',
+          machine: m.id,
+          method: 'GET',
+          path: scrub(auditTarget(t)),
+          label: decision.label,
+          address: clientAddress(from),
+          source: 'gateway',
+          user: w.principal?.name ?? 'nobody',
+          onBehalfOf: w.principal?.onBehalfOf,
+          role: decision.role,
+          error: String(v.body.error),
+        });
+      sendJson(res, v.status, v.body);
+      return settled();
+    }
+    const req = new IncomingMessage(new Socket());
+    req.method = 'GET';
+    req.url = rest;
+    req.push(null);
+    await sendUpstream(
+      req,
+      res,
+      m,
+      'GET',
+      t,
+      forwardRequestHeaders(browserHeaders),
+      null,
+      false,
+      () => undefined,
+    );
+    return settled();
+  }
+
+  return { proxy, watchRead, socketRead };
 }
+
+/** What a read sent over a page's read socket comes to (proxy-http.ts `socketRead`). */
+export type SocketReadAnswer =
+  | { status: number; headers: Record<string, string | string[]>; body: Buffer }
+  /** Not answered on the socket: the page sends it over HTTP (a command; an answer too large). */
+  | { fallback: string };

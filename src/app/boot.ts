@@ -15,6 +15,7 @@ import { whenIdle } from '../fleet/lazy';
 import { backoffDelay } from '../fleet/link';
 import { MACHINE_KINDS, type MachineInfo, type MachineKind } from '../fleet/types';
 import { CONSOLE_HEADERS } from '../fleet/origin';
+import { startReadSocket } from '../fleet/read-socket';
 import { fetchSession, trackActivity } from './auth/api';
 import { untilReachable } from './pwa/reach';
 
@@ -48,6 +49,8 @@ export async function loadSession(): Promise<void> {
  */
 export async function boot(): Promise<void> {
   await loadSession();
+  // The machines' polls go over one socket to the console server (read-socket.ts): HTTP until it is open.
+  const reads = startReadSocket();
   let machines: MachineInfo[];
   try {
     const r = await untilReachable(() =>
@@ -111,6 +114,7 @@ export async function boot(): Promise<void> {
   } else for (const k of kinds) start(k);
   window.addEventListener('pagehide', () => {
     for (const rt of allRuntimes()) rt.session?.stop();
+    reads?.close();
   });
 }
 

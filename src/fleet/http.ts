@@ -2,6 +2,7 @@ import type { z } from 'zod';
 import { commandScope, DEADLINE_GRACE_MS } from './commands';
 import { LinkError, protocolError, wordsOf } from './errors';
 import { CONSOLE_HEADERS, machineBase } from './origin';
+import { readSocket, type SocketAnswer } from './read-socket';
 
 /**
  * Typed HTTP client for one machine. Every request goes to the console's own origin,
@@ -50,6 +51,13 @@ export interface RawResponse {
   status: number;
   headers: Headers;
   text: string;
+}
+
+/** The head of an answer, from `fetch` or from the page's read socket (read-socket.ts). */
+interface AnswerHead {
+  status: number;
+  ok: boolean;
+  headers: Headers;
 }
 
 export class HttpClient {
@@ -128,7 +136,7 @@ export class HttpClient {
   }
 
   /** A non-2xx answer: the gateway's own failure, the family's vendor error, or an HTTP error in words. */
-  private failed(res: Response, text: string, path: string): LinkError {
+  private failed(res: AnswerHead, text: string, path: string): LinkError {
     const body = parseJsonLenient(text);
     const own = gatewayError(res, body);
     if (own) return own;
@@ -151,7 +159,7 @@ export class HttpClient {
   private async exchange(
     opts: RequestOptions,
     binary: boolean,
-  ): Promise<{ res: Response; text: string; blob: Blob | null }> {
+  ): Promise<{ res: AnswerHead; text: string; blob: Blob | null }> {
     // Cancelled before it left (the session stopped while it waited its turn): never sent.
     if (opts.signal?.aborted) throw new LinkError('network', `Request to ${opts.path} cancelled`);
     const scope = opts.commandId ? commandScope(this.machineId, opts.commandId) : null;
@@ -209,6 +217,30 @@ export class HttpClient {
     this.inFlight++;
     this.maxInFlight = Math.max(this.maxInFlight, this.inFlight);
     try {
+      // A plain read (no body, not a command, text) goes over the page's read socket while it is
+      // open (read-socket.ts); anything it does not answer goes over HTTP below.
+      const sock = binary || body || opts.commandId || (opts.method ?? 'GET') !== 'GET' ? null : readSocket();
+      if (sock) {
+        let asked: Promise<SocketAnswer | null> | null;
+        try {
+          asked = sock.read(this.url(opts.path, opts.query), { ...headers, ...CONSOLE_HEADERS }, ctrl.signal);
+        } catch {
+          asked = null;
+        }
+        if (asked) {
+          let got: SocketAnswer | null;
+          try {
+            got = await asked;
+          } catch (e) {
+            throw failure(e, 'request');
+          }
+          if (got) {
+            const ok = got.status >= 200 && got.status < 300;
+            return { res: { status: got.status, ok, headers: got.headers }, text: got.text, blob: null };
+          }
+          if (ctrl.signal.aborted) throw failure(new Error('aborted'), 'request');
+        }
+      }
       let res: Response;
       try {
         res = await globalThis.fetch(this.url(opts.path, opts.query), {
@@ -254,7 +286,7 @@ function isTransfer(body: BodyInit | null | undefined): boolean {
  * network failure (a link problem); 4xx a refusal (`http`). `notConfirmed`: a command that may or
  * may not have reached the machine.
  */
-export function gatewayError(res: Response, body: unknown): LinkError | null {
+export function gatewayError(res: Pick<Response, 'status' | 'headers'>, body: unknown): LinkError | null {
   return gatewayFailure(res.status, res.headers, body);
 }
 
