@@ -19,6 +19,7 @@ function fakeModule(kind: MachineKind): ControllerModule {
       commands: {},
       start: () => {
         if (kind === 'xtool') laserStarted = ctx;
+        sessionsStarted.push(ctx.machine.id);
       },
       stop: () => undefined,
     }),
@@ -27,6 +28,7 @@ function fakeModule(kind: MachineKind): ControllerModule {
 }
 
 let laserStarted: SessionContext | null = null;
+const sessionsStarted: string[] = [];
 
 const answer = (body: unknown): Response =>
   new Response(JSON.stringify(body), { status: 200, headers: { 'Content-Type': 'application/json' } });
@@ -78,5 +80,45 @@ describe('boot', () => {
     expect(order).toEqual(['xtool']);
     (laserStarted as SessionContext | null)?.snapshot.setState({ link: 'online' });
     await vi.waitFor(() => expect(order).toEqual(['xtool', 'duet', 'g2core']), { timeout: 3000 });
+  });
+
+  it('a kiosk tablet runs its own machine only; the others start when it leaves the kiosk', async () => {
+    history.replaceState(null, '', '/m/kiosk-laser?kiosk');
+    sessionsStarted.length = 0;
+    controllerLoaders.xtool = () => Promise.resolve(fakeModule('xtool'));
+    controllerLoaders.duet = () => Promise.resolve(fakeModule('duet'));
+    vi.stubGlobal(
+      'fetch',
+      vi.fn((url: string) =>
+        Promise.resolve(
+          url.startsWith('/api/machines')
+            ? answer({
+                machines: [
+                  { id: 'kiosk-printer', name: 'Printer', kind: 'duet', simulated: true },
+                  { id: 'kiosk-laser', name: 'Laser', kind: 'xtool', simulated: true },
+                  { id: 'kiosk-laser-2', name: 'Laser 2', kind: 'xtool', simulated: true },
+                ],
+              })
+            : answer({ mode: 'open', user: null }),
+        ),
+      ),
+    );
+    const { boot } = await import('./boot');
+    const { getRuntime } = await import('../fleet/fleet');
+    await boot();
+    await vi.waitFor(() => expect(sessionsStarted).toEqual(['kiosk-laser']));
+    // It shows its data, the browser is idle, seconds pass: still its machine alone (not even
+    // the other laser of its family).
+    getRuntime('kiosk-laser')?.snapshot.setState({ link: 'online' });
+    await new Promise((r) => setTimeout(r, 3500));
+    expect(sessionsStarted).toEqual(['kiosk-laser']);
+    const { navigate } = await import('./router');
+    navigate('/m/kiosk-laser?kiosk&x=1'); // still the kiosk
+    await new Promise((r) => setTimeout(r, 50));
+    expect(sessionsStarted).toEqual(['kiosk-laser']);
+    navigate('/');
+    await vi.waitFor(() =>
+      expect([...sessionsStarted].sort()).toEqual(['kiosk-laser', 'kiosk-laser-2', 'kiosk-printer']),
+    );
   });
 });

@@ -18,6 +18,7 @@ import { CONSOLE_HEADERS } from '../fleet/origin';
 import { startReadSocket } from '../fleet/read-socket';
 import { fetchSession, trackActivity } from './auth/api';
 import { untilReachable } from './pwa/reach';
+import { onLocationChange } from './router';
 
 const MachinesAnswer = z.object({
   machines: z.array(
@@ -82,23 +83,35 @@ export async function boot(): Promise<void> {
   }
   fleetStore.setState({ status: 'ready', machines, error: null });
   // Each family's code loads on its own; its machines start when it is there. On a machine's
-  // page (a kiosk tablet) that machine's family comes first and the others when the browser is
-  // idle after it (they still come: an alarm of any machine shows on every page).
-  const start = (kind: MachineKind): void =>
-    startFamily(
-      kind,
-      created.filter((rt) => rt.info.kind === kind),
-    );
-  const kinds = [...new Set(created.map((rt) => rt.info.kind))];
+  // page that machine's family comes first and the others when the browser is idle after it. A
+  // kiosk tablet (`/m/<id>?kiosk`) runs its own machine's session only: another machine's
+  // critical alarm reaches it from the alarm centre, which the gateway's watch keeps for every
+  // machine, so the tablet does not poll the whole fleet (the others start if it leaves the kiosk).
+  const started = new Set<MachineRuntime>();
+  const start = (rts: readonly MachineRuntime[]): void => {
+    const fresh = rts.filter((rt) => !started.has(rt));
+    for (const rt of fresh) started.add(rt);
+    for (const kind of new Set(fresh.map((rt) => rt.info.kind)))
+      startFamily(
+        kind,
+        fresh.filter((rt) => rt.info.kind === kind),
+      );
+  };
   const inView = created.find((rt) => rt.info.id === machineInView());
-  const first = inView?.info.kind;
-  if (inView && first) {
-    start(first);
-    let started = false;
+  if (inView && kioskInView()) {
+    start([inView]);
+    const stop = onLocationChange(() => {
+      if (kioskInView()) return;
+      stop();
+      start(created);
+    });
+  } else if (inView) {
+    start(created.filter((rt) => rt.info.kind === inView.info.kind));
+    let done = false;
     const rest = (): void => {
-      if (started) return;
-      started = true;
-      for (const k of kinds) if (k !== first) start(k);
+      if (done) return;
+      done = true;
+      start(created);
     };
     // Once the machine in view shows its data (or could not: any answer but "connecting"), or
     // after a few seconds at the latest, and then when the browser is idle.
@@ -111,7 +124,7 @@ export async function boot(): Promise<void> {
       clearTimeout(timer);
       whenIdle(rest);
     }
-  } else for (const k of kinds) start(k);
+  } else start(created);
   window.addEventListener('pagehide', () => {
     for (const rt of allRuntimes()) rt.session?.stop();
     reads?.close();
@@ -127,6 +140,11 @@ function machineInView(): string | null {
   } catch {
     return null;
   }
+}
+
+/** A kiosk tablet's page (`/m/<id>?kiosk`) is open. */
+function kioskInView(): boolean {
+  return machineInView() !== null && new URLSearchParams(location.search).has('kiosk');
 }
 
 /** On a machine's page, the other families start at the latest this long after boot. */

@@ -22,6 +22,11 @@ function subscribe(fn: () => void): () => void {
   return () => listeners.delete(fn);
 }
 
+/** Calls `fn` after every change of the page's location (in-app navigation, back, forward). */
+export function onLocationChange(fn: () => void): () => void {
+  return subscribe(fn);
+}
+
 export function useLocation(): { pathname: string; search: string } {
   const href = useSyncExternalStore(
     subscribe,
