@@ -1,4 +1,5 @@
 import react from '@vitejs/plugin-react';
+import { fileURLToPath } from 'node:url';
 import { defineConfig } from 'vite';
 import { VitePWA } from 'vite-plugin-pwa';
 import { shopdeckGateway } from './gateway/plugin';
@@ -10,6 +11,10 @@ export default defineConfig({
   // The bundle report (bundle-report/bundle.{json,md}): sizes of what each screen loads.
   // VitePWA: the web manifest and the service worker, in builds only (src/app/pwa/options.ts).
   plugins: [react(), shopdeckGateway(), bundleReport(), VitePWA(pwaOptions)],
+  // zod with `jitless` set before any schema exists, in every chunk (src/zod-jitless.ts).
+  resolve: {
+    alias: [{ find: /^zod$/, replacement: fileURLToPath(new URL('./src/zod-jitless.ts', import.meta.url)) }],
+  },
   server: { port: Number(process.env.SHOPDECK_PORT ?? 5173), host: process.env.SHOPDECK_HOST ?? 'localhost' },
   preview: {
     port: Number(process.env.SHOPDECK_PORT ?? 4173),

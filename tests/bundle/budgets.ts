@@ -7,11 +7,14 @@ import type { Screen } from '../../scripts/bundle-report';
  * the measurements by `npm run bench -- bundle` (not met yet: see the README, Performance).
  */
 export const SIZE_BUDGETS_KIB: Array<{ screen: RegExp; kib: number }> = [
-  { screen: /^shell$/, kib: 128 },
+  // 128 → 130, machine pages 160 → 162, fleet page 222 → 224 with the page's read socket
+  // (src/fleet/read-socket.ts, +1 KiB; it halves the fleet page's main-thread cost) and zod set up
+  // in a module of its own (src/zod-jitless.ts: one more chunk boundary).
+  { screen: /^shell$/, kib: 130 },
   { screen: /^family: /, kib: 28 },
-  { screen: /^machine page: /, kib: 160 },
+  { screen: /^machine page: /, kib: 162 },
   // 218 → 222 with issue 17's fleet views (list, sort, filter, groups in the toolbar: +3.7 KiB).
-  { screen: /^fleet page: /, kib: 222 },
+  { screen: /^fleet page: /, kib: 224 },
 ];
 
 /** The screens over their ceiling, in words (empty: all within budget). A screen without a ceiling is one too. */

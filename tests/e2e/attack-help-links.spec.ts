@@ -54,6 +54,15 @@ const PAYLOAD =
 async function hostileController(page: Page): Promise<void> {
   await page.addInitScript(
     ({ id, payload }) => {
+      // The hostile answers are made by wrapping fetch: the page's read socket (src/fleet/read-socket.ts)
+      // is refused here, so the page reads over HTTP, as it does whenever that socket is not open.
+      const NativeSocket = window.WebSocket;
+      window.WebSocket = class extends NativeSocket {
+        constructor(url: string | URL, protocols?: string | string[]) {
+          if (String(url).includes('/api/reads')) throw new Error('the read socket is refused in this test');
+          super(url, protocols);
+        }
+      };
       const original = window.fetch.bind(window);
       window.fetch = async (input: RequestInfo | URL, init?: RequestInit) => {
         const res = await original(input, init);
