@@ -95,10 +95,23 @@ export class BoardSim {
     this.scheduleSr();
   }
 
-  /** The board is gone (unplugged): no more output. */
+  /** The board is gone (unplugged, so unpowered): no more output, and it starts afresh. */
   powerOff(): void {
     this.alive = false;
+    this.clear();
+  }
+
+  /** What a reset or a power loss forgets: every queued line and motion, the state. */
+  private clear(): void {
     this.stopTimers();
+    this.stuck = false;
+    this.pending = [];
+    this.planner = [];
+    this.rxLine = '';
+    this.stat = 1;
+    this.hold = 0;
+    this.vel = 0;
+    this.lastSr = {};
   }
 
   /** The known firmware fault: stays in run and goes silent. */
@@ -120,7 +133,9 @@ export class BoardSim {
   }
 
   private footer(status: number, len: number): number[] {
-    return this.firmware === 'tinyg' ? [1, status, len, 1000 + ((len * 31 + status) % 9000)] : [1, status, len];
+    return this.firmware === 'tinyg'
+      ? [1, status, len, 1000 + ((len * 31 + status) % 9000)]
+      : [1, status, len];
   }
 
   private sendBanner(): void {
@@ -194,15 +209,7 @@ export class BoardSim {
       this.abs = true;
       this.report();
     } else if (ch === CTRL.reset) {
-      this.stopTimers();
-      this.stuck = false;
-      this.pending = [];
-      this.planner = [];
-      this.rxLine = '';
-      this.stat = 1;
-      this.hold = 0;
-      this.vel = 0;
-      this.lastSr = {};
+      this.clear();
       this.o.setTimeout(() => this.boot(), 100);
     }
   }
@@ -291,7 +298,8 @@ export class BoardSim {
     const found = this.findKey(k);
     if (!found) {
       this.send({ r: { [k]: null }, f: this.footer(100, len) });
-      if (this.firmware === '101.03') this.send({ err: { code: 100, msg: 'Unrecognized command or config name' } });
+      if (this.firmware === '101.03')
+        this.send({ err: { code: 100, msg: 'Unrecognized command or config name' } });
       return;
     }
     if (value !== null) {
@@ -401,11 +409,14 @@ export class BoardSim {
     this.srTimer = null;
     const si = Number(this.cfg.sys!.si) || 250;
     if (!this.cfg.sys!.sv || !this.alive) return;
-    this.srTimer = this.o.setTimeout(() => {
-      this.srTimer = null;
-      this.report();
-      this.scheduleSr();
-    }, Math.max(100, si));
+    this.srTimer = this.o.setTimeout(
+      () => {
+        this.srTimer = null;
+        this.report();
+        this.scheduleSr();
+      },
+      Math.max(100, si),
+    );
   }
 }
 

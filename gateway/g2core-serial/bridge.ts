@@ -1,6 +1,12 @@
 import configGroups from '../../src/controllers/g2core/sim/data/config-groups-100.12.json' with { type: 'json' };
 import { jsonResponse, splitPath, type Simulator } from '../../src/fleet/sim';
-import { G2Fail, errorResponse, isRecord, parseFilter, readBody } from '../../src/controllers/g2core/sim/fail';
+import {
+  G2Fail,
+  errorResponse,
+  isRecord,
+  parseFilter,
+  readBody,
+} from '../../src/controllers/g2core/sim/fail';
 import { LinkDown, SerialLink, type PortOpener } from './link';
 import { isObject, lineProblem, type Json, type JsonObject } from './protocol';
 import { Streamer, type SerialJob, type SerialOp, type StreamerEvents } from './streamer';
@@ -103,7 +109,8 @@ export class G2coreSerialBridge implements Simulator {
     let last = '';
     this.link.listen({
       state: (s) => {
-        const words = s.state === 'online' ? `online on ${this.link.device ?? o.serial}` : this.link.downWords();
+        const words =
+          s.state === 'online' ? `online on ${this.link.device ?? o.serial}` : this.link.downWords();
         if (words !== last) events.event(s.state === 'online' ? 'info' : 'warn', `${o.name}: ${words}`);
         last = words;
       },
@@ -169,7 +176,12 @@ export class G2coreSerialBridge implements Simulator {
       s.deleteJob(this.findJob(jobId));
       return new Response(null, { status: 204 });
     }
-    if (['/version', '/status_report', '/machine', '/operation', '/job'].includes(path) || key || opId || jobId)
+    if (
+      ['/version', '/status_report', '/machine', '/operation', '/job'].includes(path) ||
+      key ||
+      opId ||
+      jobId
+    )
       throw new G2Fail(106, `${method} is not supported on ${path}`);
     throw new G2Fail(100, path.slice(0, 80));
   }
@@ -194,7 +206,8 @@ export class G2coreSerialBridge implements Simulator {
     if (b) return b;
     const sys = await this.ask('sys', null);
     const out: JsonObject = {};
-    if (isObject(sys)) for (const k of ['fv', 'fb', 'fbs', 'fbc', 'hp', 'hv', 'id']) if (k in sys) out[k] = sys[k]!;
+    if (isObject(sys))
+      for (const k of ['fv', 'fb', 'fbs', 'fbc', 'hp', 'hv', 'id']) if (k in sys) out[k] = sys[k]!;
     return out;
   }
 
@@ -207,7 +220,8 @@ export class G2coreSerialBridge implements Simulator {
       );
     }
     const sr = this.streamer.sr;
-    if (Object.keys(sr).length === 0) return gatewayDown(`${this.o.name}: waiting for the board's first status report`);
+    if (Object.keys(sr).length === 0)
+      return gatewayDown(`${this.o.name}: waiting for the board's first status report`);
     const spec = parseFilter(query);
     if (!spec) return jsonResponse(sr);
     const out: Record<string, unknown> = {};
@@ -220,7 +234,8 @@ export class G2coreSerialBridge implements Simulator {
 
   private async machine(query: URLSearchParams): Promise<Response> {
     this.requireOnline();
-    if (query.get('shallow') === 'true') return jsonResponse({ value: Object.fromEntries(GROUPS.map((g) => [g, true])) });
+    if (query.get('shallow') === 'true')
+      return jsonResponse({ value: Object.fromEntries(GROUPS.map((g) => [g, true])) });
     const spec = parseFilter(query) ?? Object.fromEntries(GROUPS.map((g) => [g, null]));
     const keys = Object.keys(spec);
     if (keys.length > GROUPS.length + 20) throw new G2Fail(107, 'too many keys in one filter');
@@ -240,7 +255,8 @@ export class G2coreSerialBridge implements Simulator {
       }
       if (isObject(want) && isObject(v)) {
         const sub: JsonObject = {};
-        for (const [sk, sw] of Object.entries(want)) if (sk in v && (sw === null || sw !== v[sk])) sub[sk] = v[sk]!;
+        for (const [sk, sw] of Object.entries(want))
+          if (sk in v && (sw === null || sw !== v[sk])) sub[sk] = v[sk]!;
         out[raw] = sub;
       } else if (want === null || want === undefined || want !== v) out[raw] = v;
     }
@@ -308,7 +324,10 @@ export class G2coreSerialBridge implements Simulator {
   private opList(): Record<string, unknown>[] {
     const all = [...this.streamer.ops.values()];
     const active = all.filter((o) => o.state === 'run' || o.state === 'pause' || o.state === 'pend');
-    const ended = all.filter((o) => !active.includes(o)).slice(-20).reverse();
+    const ended = all
+      .filter((o) => !active.includes(o))
+      .slice(-20)
+      .reverse();
     return [...active, ...ended].map((o) => this.opView(o));
   }
 
@@ -326,7 +345,8 @@ export class G2coreSerialBridge implements Simulator {
       text = await file.text();
     } else {
       const body = await readBody(req);
-      if (!isRecord(body) || typeof body.gcode !== 'string') throw new G2Fail(101, 'expected {"name":…,"gcode":…}');
+      if (!isRecord(body) || typeof body.gcode !== 'string')
+        throw new G2Fail(101, 'expected {"name":…,"gcode":…}');
       name = typeof body.name === 'string' ? body.name : '';
       text = body.gcode;
     }

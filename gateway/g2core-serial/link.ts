@@ -299,8 +299,11 @@ export class SerialLink {
   private lost(why: string): void {
     this.port = null;
     this.generation++;
-    this.drop('unplugged', why);
-    this.setState({ state: 'unplugged', detail: `the board went away (${why}); waiting for it to come back` });
+    this.drop('unplugged', `the board went away (${why})`);
+    this.setState({
+      state: 'unplugged',
+      detail: `the board went away (${why}); waiting for it to come back`,
+    });
     this.retryMs = this.opts.retryMs ?? 1000;
     this.scheduleRetry();
   }
@@ -405,8 +408,7 @@ export class SerialLink {
    * connected; never queued for later.
    */
   request(key: string, value: Json, duringSetup = false): Promise<Reply> {
-    if (!this.port || (!duringSetup && !this.online))
-      return Promise.reject(new LinkDown(this.downWords()));
+    if (!this.port || (!duringSetup && !this.online)) return Promise.reject(new LinkDown(this.downWords()));
     return new Promise<Reply>((resolve, reject) => {
       const timer = this.st(() => {
         const i = this.urgent.indexOf(entry);

@@ -53,7 +53,8 @@ function streamOpener(make: Make, list: () => Promise<PortInfo[]>): PortOpener {
 export function nativeOpener(): PortOpener {
   return streamOpener(
     (path, baudRate) => new SerialPort({ path, baudRate, autoOpen: false, lock: true }),
-    async () => (await SerialPort.list()).map((p) => ({ path: p.path, vendorId: p.vendorId, productId: p.productId })),
+    async () =>
+      (await SerialPort.list()).map((p) => ({ path: p.path, vendorId: p.vendorId, productId: p.productId })),
   );
 }
 
@@ -69,6 +70,10 @@ export function mockOpener(opened?: (port: SerialPortMock) => void): PortOpener 
       return port;
     },
     async () =>
-      (await SerialPortMock.list()).map((p) => ({ path: p.path, vendorId: p.vendorId, productId: p.productId })),
+      (await SerialPortMock.list()).map((p) => ({
+        path: p.path,
+        vendorId: p.vendorId,
+        productId: p.productId,
+      })),
   );
 }

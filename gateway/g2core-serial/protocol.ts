@@ -15,9 +15,7 @@ export const CTRL = {
   enquiry: '\x05',
 } as const;
 
-export const CONTROL_BYTES: ReadonlySet<number> = new Set(
-  Object.values(CTRL).map((c) => c.charCodeAt(0)),
-);
+export const CONTROL_BYTES: ReadonlySet<number> = new Set(Object.values(CTRL).map((c) => c.charCodeAt(0)));
 
 /** A line of this many bytes or more (terminator included) is refused before it is sent. */
 export const MAX_LINE_BYTES = 254;
@@ -125,7 +123,10 @@ export function sendableLine(line: string): string | null {
   const t = line.trim();
   if (t === '%') return null; // a program delimiter line
   if (t.startsWith('{')) return t;
-  const code = t.replace(/\([^)]*\)/g, '').replace(/;.*$/, '').trim();
+  const code = t
+    .replace(/\([^)]*\)/g, '')
+    .replace(/;.*$/, '')
+    .trim();
   return code === '' ? null : code;
 }
 

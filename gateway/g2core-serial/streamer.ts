@@ -109,7 +109,10 @@ export class Streamer {
       },
       state: (s) => {
         if (s.state !== 'online' && s.state !== 'connecting') {
-          this.failAll(statusError(6, `the board went away (${this.o.link.downWords()}); nothing will be re-sent`), 'error');
+          this.failAll(
+            statusError(6, `the board went away (${this.o.link.downWords()}); nothing will be re-sent`),
+            'error',
+          );
           for (const k of Object.keys(this.sr)) delete this.sr[k];
           this.stuck = null;
         }
@@ -157,7 +160,8 @@ export class Streamer {
     if (MOVING.has(stat)) op.moved = true;
     if (STOPPED.has(stat) && op.moved && op.done === op.lines.length) this.finish(op, null);
     // A G-code error or an alarm mid-job: the board stopped; the rest is not sent.
-    if (stat === 2 || stat === 12 || stat === 13) this.finish(op, statusError(stat === 2 ? 204 : stat === 12 ? 205 : 206, 'the machine stopped (alarm)'));
+    if (stat === 2 || stat === 12 || stat === 13)
+      this.finish(op, statusError(stat === 2 ? 204 : stat === 12 ? 205 : 206, 'the machine stopped (alarm)'));
   }
 
   private nextLine(): DataLine | null {
@@ -172,7 +176,7 @@ export class Streamer {
     if (op.state !== 'run' && op.state !== 'pause') return;
     if (reply instanceof Error) {
       const why = reply instanceof LinkDown ? reply.message : String(reply);
-      this.finish(op, statusError(6, `line ${i + 1} got no answer: ${why}`));
+      this.finish(op, statusError(6, `line ${i + 1} got no answer: ${why}; nothing is re-sent`));
       return;
     }
     if (reply.status !== 0 && reply.status !== 3 && reply.status !== 4) {
@@ -201,7 +205,10 @@ export class Streamer {
     if (job && (job.state === 'running' || job.state === 'paused')) {
       job.state = err ? (err.code === 207 ? 'killed' : 'error') : 'done';
       job.finished = this.o.now();
-      this.o.events.event(err ? 'warn' : 'info', `job ${job.id} "${job.name}" ${job.state} at line ${op.done} of ${op.lines.length}${err ? `: ${err.additional_description}` : ''}`);
+      this.o.events.event(
+        err ? 'warn' : 'info',
+        `job ${job.id} "${job.name}" ${job.state} at line ${op.done} of ${op.lines.length}${err ? `: ${err.additional_description}` : ''}`,
+      );
     }
     this.armWatchdog();
     this.startNext();
@@ -224,7 +231,9 @@ export class Streamer {
   private prune(): void {
     const ended = [...this.ops.values()].filter((o) => o.state === 'done' || o.state === 'error');
     for (const o of ended.slice(0, -KEEP_FINISHED)) this.ops.delete(o.id);
-    const endedJobs = [...this.jobs.values()].filter((j) => !['queued', 'running', 'paused'].includes(j.state));
+    const endedJobs = [...this.jobs.values()].filter(
+      (j) => !['queued', 'running', 'paused'].includes(j.state),
+    );
     for (const j of endedJobs.slice(0, -KEEP_FINISHED)) this.jobs.delete(j.id);
   }
 
@@ -265,7 +274,12 @@ export class Streamer {
     return this.newOp('run', value, Streamer.prepareLines(lines), null);
   }
 
-  private newOp(optype: SerialOp['optype'], value: SerialOp['value'], lines: string[], jobId: number | null): SerialOp {
+  private newOp(
+    optype: SerialOp['optype'],
+    value: SerialOp['value'],
+    lines: string[],
+    jobId: number | null,
+  ): SerialOp {
     const op: SerialOp = {
       id: ++this.opSeq,
       optype,
@@ -313,7 +327,8 @@ export class Streamer {
       this.finish(op, statusError(207, 'removed before it ran'));
       return;
     }
-    if (op.state !== 'run' && op.state !== 'pause') throw new G2Fail(106, `operation ${op.id} is ${op.state}`);
+    if (op.state !== 'run' && op.state !== 'pause')
+      throw new G2Fail(106, `operation ${op.id} is ${op.state}`);
     this.requireOnline();
     this.o.link.control(CTRL.feedhold);
     this.o.link.control(CTRL.flush);
@@ -353,7 +368,8 @@ export class Streamer {
   // ---------------------------------------------------------------------------- jobs
 
   addJob(name: string, text: string): SerialJob {
-    if (Buffer.byteLength(text) > MAX_JOB_BYTES) throw new G2Fail(10, `the file is larger than ${MAX_JOB_BYTES} bytes`);
+    if (Buffer.byteLength(text) > MAX_JOB_BYTES)
+      throw new G2Fail(10, `the file is larger than ${MAX_JOB_BYTES} bytes`);
     const lines = Streamer.prepareLines(text.split(/\r?\n/));
     const job: SerialJob = {
       id: ++this.jobSeq,
@@ -393,7 +409,8 @@ export class Streamer {
   }
 
   deleteJob(job: SerialJob): void {
-    if (job.state === 'running' || job.state === 'paused') throw new G2Fail(106, `job ${job.id} is ${job.state}`);
+    if (job.state === 'running' || job.state === 'paused')
+      throw new G2Fail(106, `job ${job.id} is ${job.state}`);
     this.jobs.delete(job.id);
     this.queue = this.queue.filter((id) => id !== job.id);
   }

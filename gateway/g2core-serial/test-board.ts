@@ -20,10 +20,18 @@ export interface MockBoard {
   release(): void;
 }
 
-export function mockBoard(path: string, opts: BoardSimOptions & { vendorId?: string; productId?: string } = {}): MockBoard {
+export function mockBoard(
+  path: string,
+  opts: BoardSimOptions & { vendorId?: string; productId?: string } = {},
+): MockBoard {
   const binding = SerialPortMock.binding;
   const create = (): void =>
-    binding.createPort(path, { echo: false, record: false, vendorId: opts.vendorId, productId: opts.productId });
+    binding.createPort(path, {
+      echo: false,
+      record: false,
+      vendorId: opts.vendorId,
+      productId: opts.productId,
+    });
   create();
   const board = new BoardSim(opts);
   let current: SerialPortMock | null = null;
