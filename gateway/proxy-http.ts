@@ -394,7 +394,8 @@ export function createHttpProxy(ctx: GatewayContext) {
     const pathAndQuery = t.path + (qs ? `?${qs}` : '');
 
     const url = m.url;
-    if (!m.simulated && !url) {
+    // A serial board (m.serial) is answered by the gateway's bridge, like a simulator.
+    if (!m.simulated && !url && !m.serial) {
       sendJson(res, 502, { error: `machine ${m.id} has no url` });
       return;
     }

@@ -1,4 +1,3 @@
-import { SerialPort, SerialPortMock } from 'serialport';
 import type { SerialPortStream } from '@serialport/stream';
 import type { OpenPort, PortEvents, PortInfo, PortOpener } from './link';
 
@@ -8,9 +7,9 @@ import type { OpenPort, PortEvents, PortInfo, PortOpener } from './link';
  * and the `close` event the stream emits when the device disappears.
  */
 
-type Make = (path: string, baudRate: number) => SerialPortStream;
+export type Make = (path: string, baudRate: number) => SerialPortStream;
 
-function streamOpener(make: Make, list: () => Promise<PortInfo[]>): PortOpener {
+export function streamOpener(make: Make, list: () => Promise<PortInfo[]>): PortOpener {
   return {
     list,
     open(path: string, baudRate: number, events: PortEvents): Promise<OpenPort> {
@@ -49,31 +48,30 @@ function streamOpener(make: Make, list: () => Promise<PortInfo[]>): PortOpener {
   };
 }
 
-/** The machine's real serial ports. */
-export function nativeOpener(): PortOpener {
-  return streamOpener(
-    (path, baudRate) => new SerialPort({ path, baudRate, autoOpen: false, lock: true }),
-    async () =>
-      (await SerialPort.list()).map((p) => ({ path: p.path, vendorId: p.vendorId, productId: p.productId })),
-  );
-}
-
 /**
- * The mock binding's ports (tests): create them with `SerialPortMock.binding.createPort`.
- * `opened` sees each stream once it is open (to attach a simulated board to its binding).
+ * The machine's real serial ports. `serialport` (and its native binding) is loaded on first use,
+ * so a gateway without serial machines never loads it.
  */
-export function mockOpener(opened?: (port: SerialPortMock) => void): PortOpener {
-  return streamOpener(
-    (path, baudRate) => {
-      const port = new SerialPortMock({ path, baudRate, autoOpen: false });
-      if (opened) port.once('open', () => opened(port));
-      return port;
-    },
-    async () =>
-      (await SerialPortMock.list()).map((p) => ({
-        path: p.path,
-        vendorId: p.vendorId,
-        productId: p.productId,
-      })),
-  );
+export function nativeOpener(): PortOpener {
+  const lib = import('serialport');
+  let opener: PortOpener | null = null;
+  const get = async (): Promise<PortOpener> => {
+    if (opener) return opener;
+    const { SerialPort } = await lib;
+    opener = streamOpener(
+      (path, baudRate) => new SerialPort({ path, baudRate, autoOpen: false, lock: true }),
+      async () =>
+        (await SerialPort.list()).map((p) => ({
+          path: p.path,
+          vendorId: p.vendorId,
+          productId: p.productId,
+        })),
+    );
+    return opener;
+  };
+  void lib.catch(() => undefined);
+  return {
+    list: async () => (await get()).list(),
+    open: async (path, baudRate, events) => (await get()).open(path, baudRate, events),
+  };
 }

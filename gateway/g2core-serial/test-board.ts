@@ -1,6 +1,6 @@
 import { SerialPortMock } from 'serialport';
 import { BoardSim, type BoardSimOptions } from './board-sim';
-import { mockOpener } from './ports';
+import { streamOpener } from './ports';
 import type { PortOpener } from './link';
 
 /**
@@ -80,4 +80,24 @@ export function mockBoard(
       other = null;
     },
   };
+}
+
+/**
+ * The mock binding's ports: create them with `SerialPortMock.binding.createPort`. `opened` sees
+ * each stream once it is open (to attach a simulated board to its binding).
+ */
+export function mockOpener(opened?: (port: SerialPortMock) => void): PortOpener {
+  return streamOpener(
+    (path, baudRate) => {
+      const port = new SerialPortMock({ path, baudRate, autoOpen: false });
+      if (opened) port.once('open', () => opened(port));
+      return port;
+    },
+    async () =>
+      (await SerialPortMock.list()).map((p) => ({
+        path: p.path,
+        vendorId: p.vendorId,
+        productId: p.productId,
+      })),
+  );
 }
