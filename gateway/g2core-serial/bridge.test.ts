@@ -341,6 +341,23 @@ describe('serial g2core bridge', () => {
     bridge.dispose();
   });
 
+  it('watchdog: a slow move that changes nothing for 10 s is alive (it answers the status request), not stuck', async () => {
+    const { bridge } = setup({ msPerLine: 15_000 });
+    await online(bridge);
+    const op = await call(bridge, 'POST', '/operation', { optype: 'run', value: ['G1 X10 F10', 'G1 X20'] });
+    await vi.advanceTimersByTimeAsync(14_000);
+    expect(bridge.link.written).toContain('{"sr":null}\n');
+    expect(bridge.streamer.stuck).toBeNull();
+    expect((await call(bridge, 'GET', '/status_report')).status).toBe(200);
+    await vi.advanceTimersByTimeAsync(20_000);
+    expect((await call(bridge, 'GET', `/operation/${String(op.body)}`)).body).toMatchObject({
+      opstate: 'done',
+      line: 2,
+    });
+    expect(events.some((e) => /stuck/.test(e))).toBe(false);
+    bridge.dispose();
+  });
+
   it('reads and writes settings as JSON lines; the 101.03 {"err"} companion line is not taken as an answer', async () => {
     const { bridge } = setup();
     await online(bridge);

@@ -313,8 +313,8 @@ export class G2coreSerialBridge implements Simulator {
       id: op.id,
       optype: op.optype,
       opstate: op.state,
-      // A job's operation names its job, not its lines (they can be megabytes).
-      value: op.optype === 'sendfile' ? op.value : op.value,
+      // A job's operation carries its job id, not its lines (they can be megabytes).
+      value: op.value,
       line: op.done,
       ...(op.error ? { error: op.error } : {}),
       ...(op.r.length ? { r: op.r } : {}),

@@ -87,6 +87,7 @@ export class Streamer {
   readonly sr: Record<string, unknown> = {};
   private lastHeard = 0;
   private watchdog: unknown = null;
+  private probe: unknown = null;
   private killTimer: unknown = null;
   /** Set when the watchdog fired: the board stays "stuck in run" until a reset or a report. */
   stuck: { since: number; line: number } | null = null;
@@ -135,11 +136,23 @@ export class Streamer {
     this.armWatchdog();
   }
 
+  /**
+   * The watchdog: quiet for half its time while running, the board is asked for a status report
+   * (a dwell or a slow move changes nothing a filtered report would carry); quiet for all of it,
+   * the board is taken as stuck in run.
+   */
   private armWatchdog(): void {
     if (this.watchdog !== null) this.o.clearTimeout(this.watchdog);
+    if (this.probe !== null) this.o.clearTimeout(this.probe);
     this.watchdog = null;
+    this.probe = null;
     const op = this.current();
     if (!op || op.state !== 'run') return;
+    this.probe = this.o.setTimeout(() => {
+      this.probe = null;
+      if (this.current()?.state === 'run' && !this.stuck && this.o.link.online)
+        this.o.link.request('sr', null).catch(() => undefined);
+    }, this.o.watchdogMs / 2);
     this.watchdog = this.o.setTimeout(() => {
       this.watchdog = null;
       const cur = this.current();
@@ -147,7 +160,7 @@ export class Streamer {
       this.stuck = { since: this.lastHeard, line: cur.done };
       this.o.events.event(
         'error',
-        `the board has sent nothing for ${Math.round(this.o.watchdogMs / 1000)} s while running (line ${cur.done}): stuck in run? A supervisor can reset the board`,
+        `the board has sent nothing for ${Math.round(this.o.watchdogMs / 1000)} s while running (line ${cur.done}), not even an answer to a status request: stuck in run? A supervisor can reset the board`,
       );
     }, this.o.watchdogMs);
   }
@@ -168,7 +181,7 @@ export class Streamer {
     const op = this.current();
     if (!op || op.state !== 'run' || this.stuck || op.sent >= op.lines.length) return null;
     const i = op.sent++;
-    this.armWatchdog();
+    if (this.watchdog === null) this.armWatchdog();
     return { line: op.lines[i]!, done: (reply) => this.lineDone(op, i, reply) };
   }
 
@@ -430,7 +443,7 @@ export class Streamer {
   }
 
   dispose(): void {
-    for (const t of [this.watchdog, this.killTimer]) if (t !== null) this.o.clearTimeout(t);
+    for (const t of [this.watchdog, this.probe, this.killTimer]) if (t !== null) this.o.clearTimeout(t);
     for (const op of this.ops.values()) if (op.endTimer !== null) this.o.clearTimeout(op.endTimer);
   }
 }
