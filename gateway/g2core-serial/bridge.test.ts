@@ -187,6 +187,31 @@ describe('serial g2core bridge', () => {
     bridge.dispose();
   });
 
+  it('uploads a job as multipart, kills a queued job (kept as killed), deletes a finished one', async () => {
+    const { bridge } = setup();
+    await online(bridge);
+    const form = new FormData();
+    form.append('file', new Blob(['G0 X1\nG0 X2\n']), 'a.nc');
+    const res = await bridge.fetch(
+      new Request('http://mill.serial/job', { method: 'POST', body: form }),
+      '/job',
+    );
+    expect(res.status).toBe(201);
+    await call(bridge, 'POST', '/job', { name: 'b.nc', gcode: 'G0 X3' });
+    expect((await call(bridge, 'GET', '/job')).body).toMatchObject([
+      { id: 1, name: 'a.nc', lines: 2, position: 0 },
+      { id: 2, name: 'b.nc', lines: 1, position: 1 },
+    ]);
+    expect((await call(bridge, 'PUT', '/job/1', { state: 'kill' })).body).toMatchObject({ state: 'killed' });
+    expect((await call(bridge, 'GET', '/job/1')).body).toMatchObject({ state: 'killed', position: null });
+    expect((await call(bridge, 'GET', '/job/2')).body).toMatchObject({ position: 0 });
+    expect((await call(bridge, 'DELETE', '/job/1')).status).toBe(204);
+    expect((await call(bridge, 'GET', '/job/1')).status).toBe(404);
+    // Nothing of either job reached the board.
+    expect(bridge.link.written.slice(3)).toEqual([]);
+    bridge.dispose();
+  });
+
   it('refuses a line of 254 bytes or more, and "!" hidden in a setting value, before sending anything', async () => {
     const { bridge } = setup();
     await online(bridge);

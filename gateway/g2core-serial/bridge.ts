@@ -9,7 +9,8 @@ import {
 } from '../../src/controllers/g2core/sim/fail';
 import { LinkDown, SerialLink, type PortOpener } from './link';
 import { isObject, lineProblem, type Json, type JsonObject } from './protocol';
-import { Streamer, type SerialJob, type SerialOp, type StreamerEvents } from './streamer';
+import { MAX_JOB_BYTES, Streamer, type SerialJob, type SerialOp, type StreamerEvents } from './streamer';
+import { jobView, readJobUpload } from '../../src/controllers/g2core/sim/job-wire';
 
 /**
  * The g2core REST design (../shared/protocols/g2core-rest-design.txt, as the console settled it in
@@ -334,22 +335,7 @@ export class G2coreSerialBridge implements Simulator {
   // ------------------------------------------------------------------------------ jobs
 
   private async postJob(req: Request): Promise<Response> {
-    const type = req.headers.get('content-type') ?? '';
-    let name = '';
-    let text = '';
-    if (type.includes('multipart/form-data')) {
-      const form = await req.formData();
-      const file = form.get('file');
-      if (!file || typeof file === 'string') throw new G2Fail(101, 'multipart needs a "file" field');
-      name = String(form.get('name') ?? file.name ?? '');
-      text = await file.text();
-    } else {
-      const body = await readBody(req);
-      if (!isRecord(body) || typeof body.gcode !== 'string')
-        throw new G2Fail(101, 'expected {"name":…,"gcode":…}');
-      name = typeof body.name === 'string' ? body.name : '';
-      text = body.gcode;
-    }
+    const { name, text } = await readJobUpload(req, MAX_JOB_BYTES);
     return jsonResponse(this.streamer.addJob(name, text).id, 201);
   }
 
@@ -361,18 +347,7 @@ export class G2coreSerialBridge implements Simulator {
 
   private jobView(job: SerialJob): Record<string, unknown> {
     const op = job.operation !== null ? this.streamer.ops.get(job.operation) : undefined;
-    return {
-      id: job.id,
-      name: job.name,
-      state: job.state,
-      lines: job.lines.length,
-      done: op ? op.done : job.state === 'done' ? job.lines.length : 0,
-      started: job.started === null ? null : new Date(job.started).toISOString(),
-      finished: job.finished === null ? null : new Date(job.finished).toISOString(),
-      operation: job.operation,
-      position: this.streamer.position(job),
-      ...(op?.error ? { error: op.error } : {}),
-    };
+    return jobView(job, op, this.streamer.position(job));
   }
 
   private putJob(job: SerialJob, body: unknown): Response {
@@ -390,10 +365,8 @@ export class G2coreSerialBridge implements Simulator {
         s.pause(op);
       } else if (body.state === 'kill') {
         if (op && (job.state === 'running' || job.state === 'paused')) s.kill(op);
-        else if (job.state === 'queued') {
-          s.deleteJob(job);
-          job.state = 'killed';
-        } else throw new G2Fail(106, `job ${job.id} is ${job.state}`);
+        else if (job.state === 'queued') s.killQueued(job);
+        else throw new G2Fail(106, `job ${job.id} is ${job.state}`);
       } else throw new G2Fail(101, 'state must be "run", "pause" or "kill"');
     }
     return jsonResponse(this.jobView(job));

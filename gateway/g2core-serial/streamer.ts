@@ -381,8 +381,6 @@ export class Streamer {
   // ---------------------------------------------------------------------------- jobs
 
   addJob(name: string, text: string): SerialJob {
-    if (Buffer.byteLength(text) > MAX_JOB_BYTES)
-      throw new G2Fail(10, `the file is larger than ${MAX_JOB_BYTES} bytes`);
     const lines = Streamer.prepareLines(text.split(/\r?\n/));
     const job: SerialJob = {
       id: ++this.jobSeq,
@@ -419,6 +417,13 @@ export class Streamer {
     const to = Math.max(0, Math.min(this.queue.length - 1, Math.round(position)));
     this.queue.splice(i, 1);
     this.queue.splice(to, 0, job.id);
+  }
+
+  /** A queued job killed: out of the queue, kept in the list as killed. */
+  killQueued(job: SerialJob): void {
+    this.queue = this.queue.filter((id) => id !== job.id);
+    job.state = 'killed';
+    job.finished = this.o.now();
   }
 
   deleteJob(job: SerialJob): void {
