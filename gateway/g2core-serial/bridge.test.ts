@@ -212,6 +212,35 @@ describe('serial g2core bridge', () => {
     bridge.dispose();
   });
 
+  it('a hostile board: noise, an endless line, a flood of report keys, nested values and markup are contained', async () => {
+    const { mb, bridge } = setup();
+    await online(bridge);
+    const emit = (text: string): void =>
+      (mb.port()!.port as unknown as { emitData(b: Buffer): void }).emitData(Buffer.from(text, 'latin1'));
+    emit('\u0000\u00ff\u00fe garbage\n');
+    emit('x'.repeat(40_000)); // no newline: dropped, not kept
+    const flood = Object.fromEntries(Array.from({ length: 500 }, (_, i) => [`k${i}`, i]));
+    emit(
+      JSON.stringify({
+        sr: { ...flood, posx: 7, deep: { a: { b: 1 } }, msg: '<img src=x onerror=alert(1)>'.repeat(10) },
+      }) + '\n',
+    );
+    emit(JSON.stringify({ sr: { ['a'.repeat(200)]: 1, stat: 3 } }) + '\n');
+    await vi.advanceTimersByTimeAsync(10);
+    const sr = (await call(bridge, 'GET', '/status_report')).body as Record<string, unknown>;
+    expect(Object.keys(sr).length).toBeLessThanOrEqual(100);
+    expect(sr.stat).toBe(3);
+    expect(sr).not.toHaveProperty('deep');
+    expect(Object.keys(sr).every((k) => k.length <= 16)).toBe(true);
+    expect(Object.values(sr).every((v) => typeof v !== 'string' || v.length <= 64)).toBe(true);
+    // The link still works: the next request gets its own answer.
+    expect(await call(bridge, 'GET', '/machine/x/vm')).toEqual({
+      status: 200,
+      body: { value: expect.any(Number) },
+    });
+    bridge.dispose();
+  });
+
   it('refuses a line of 254 bytes or more, and "!" hidden in a setting value, before sending anything', async () => {
     const { bridge } = setup();
     await online(bridge);

@@ -5,6 +5,7 @@ import {
   MAX_RX_LINE,
   jsonLine,
   parseBoardLine,
+  scalarsOf,
   type BoardMessage,
   type Json,
   type JsonObject,
@@ -331,7 +332,7 @@ export class SerialLink {
   private onLine(line: string): void {
     const m = parseBoardLine(line);
     if (m.type === 'banner') {
-      this.banner = m.info;
+      this.banner = scalarsOf(m.info);
       if (this.bannerWaiter) this.bannerWaiter();
       else if (this.online) {
         this.drop('reset', 'the board reset (new start-up banner)');

@@ -134,3 +134,25 @@ export function sendableLine(line: string): string | null {
 export function jsonLine(key: string, value: Json): string {
   return JSON.stringify({ [key]: value });
 }
+
+/** Most keys kept from a status report or a banner: a board that sends more is cut short. */
+export const MAX_REPORT_KEYS = 100;
+
+/**
+ * The scalar values of a status report or banner, as far as they can be shown: keys of 1 to 16
+ * letters and digits, numbers, booleans, null, and text cut to 64 characters. Anything else
+ * (nested objects, long keys, a flood of keys) is dropped: the board's bytes are untrusted.
+ */
+export function scalarsOf(o: JsonObject): Record<string, string | number | boolean | null> {
+  const out: Record<string, string | number | boolean | null> = {};
+  let n = 0;
+  for (const [k, v] of Object.entries(o)) {
+    if (n >= MAX_REPORT_KEYS) break;
+    if (!/^[A-Za-z0-9]{1,16}$/.test(k)) continue;
+    if (typeof v === 'string') out[k] = v.slice(0, 64);
+    else if (typeof v === 'number' || typeof v === 'boolean' || v === null) out[k] = v;
+    else continue;
+    n++;
+  }
+  return out;
+}

@@ -1,6 +1,6 @@
 import { statusText } from '../../src/controllers/g2core/codes';
 import { G2Fail } from '../../src/controllers/g2core/sim/fail';
-import { CTRL, lineProblem, sendableLine, type JsonObject } from './protocol';
+import { CTRL, MAX_REPORT_KEYS, lineProblem, scalarsOf, sendableLine, type JsonObject } from './protocol';
 import { LinkDown, type DataLine, type Reply, type SerialLink } from './link';
 
 /**
@@ -166,7 +166,11 @@ export class Streamer {
   }
 
   private onSr(sr: JsonObject): void {
-    Object.assign(this.sr, sr);
+    const clean = scalarsOf(sr);
+    // A board that keeps inventing keys cannot grow the report without bound.
+    for (const k of Object.keys(clean))
+      if (!(k in this.sr) && Object.keys(this.sr).length >= MAX_REPORT_KEYS) delete clean[k];
+    Object.assign(this.sr, clean);
     const stat = typeof this.sr.stat === 'number' ? this.sr.stat : null;
     const op = this.current();
     if (!op || stat === null) return;
@@ -197,7 +201,8 @@ export class Streamer {
       return;
     }
     op.done++;
-    if (Object.keys(reply.r).length) op.r.push(reply.r);
+    // Replies of JSON lines, as the design settles it (the first 100: an answer is never a flood).
+    if (Object.keys(reply.r).length && op.r.length < 100) op.r.push(reply.r);
     if (op.done === op.lines.length) {
       // Lines without motion (settings, M-codes) end when answered; motion ends when the board stops.
       op.endTimer = this.o.setTimeout(() => {
