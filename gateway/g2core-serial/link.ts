@@ -103,7 +103,12 @@ export interface LinkListener {
 export function classifyOpenError(e: unknown, path: string): LinkState {
   const msg = e instanceof Error ? e.message : String(e);
   const code = (e as { code?: unknown } | null)?.code;
-  if (/lock|busy|EBUSY|EACCES|Resource temporarily unavailable|Access denied/i.test(msg) || code === 'EBUSY')
+  if (/Permission denied/i.test(msg) || code === 'EACCES')
+    return {
+      state: 'error',
+      detail: `${path}: no permission to open it (on Linux, add the console's user to the "dialout" group)`,
+    };
+  if (/lock|busy|EBUSY|Resource temporarily unavailable|Access denied/i.test(msg) || code === 'EBUSY')
     return { state: 'busy', detail: `${path} is held by another program (close it to let Shopdeck connect)` };
   if (/ENOENT|does not exist|No such file|not found|cannot find/i.test(msg) || code === 'ENOENT')
     return { state: 'unplugged', detail: `${path} is not there: the board is unplugged or switched off` };

@@ -106,6 +106,16 @@ describe('g2core serial protocol', () => {
         '/dev/x',
       ),
     ).toMatchObject({ state: 'unplugged' });
+    expect(
+      classifyOpenError(new Error('Error: Permission denied, cannot open /dev/x'), '/dev/x'),
+    ).toMatchObject({
+      state: 'error',
+      detail: expect.stringMatching(/dialout/),
+    });
+    // Windows says "Access denied" for a port another program has open.
+    expect(classifyOpenError(new Error('Opening COM3: Access denied'), 'COM3')).toMatchObject({
+      state: 'busy',
+    });
   });
 });
 
