@@ -81,6 +81,7 @@ export class BoardSim {
     };
     this.cfg.sys!.sv = 0;
     this.cfg.sys!.qv = 0;
+    Object.assign(this.cfg.sys!, this.identity());
   }
 
   /** Where the board's output lines go (each is written with "\n"). */
@@ -88,10 +89,13 @@ export class BoardSim {
     this.out = out;
   }
 
-  /** The board powers up (or resets): the banner. */
-  boot(): void {
+  /**
+   * The board powers up (or resets): the banner. `banner: false` is a board already running when
+   * the port opens (g2core's native USB does not reset then): no banner is seen.
+   */
+  boot(banner = true): void {
     this.alive = true;
-    this.sendBanner();
+    if (banner) this.sendBanner();
     this.scheduleSr();
   }
 
@@ -138,21 +142,22 @@ export class BoardSim {
       : [1, status, len];
   }
 
-  private sendBanner(): void {
+  /** The identity of this build, as the banner and the `sys` group show it. */
+  private identity(): JsonObject {
     const numbers = this.firmware !== '101.03';
-    this.send({
-      r: {
-        fv: this.firmware === 'tinyg' ? 0.97 : 0.99,
-        fb: this.firmware === '100.26' ? 100.26 : this.firmware === 'tinyg' ? 440.2 : 101.03,
-        fbs: '',
-        fbc: 'settings_default.h',
-        hp: numbers ? 3 : 'ArduinoDue',
-        hv: numbers ? 0 : 'na',
-        id: '0084-084a-29c6-8ce',
-        msg: 'SYSTEM READY',
-      },
-      f: this.footer(0, 1),
-    });
+    return {
+      fv: this.firmware === 'tinyg' ? 0.97 : 0.99,
+      fb: this.firmware === '100.26' ? 100.26 : this.firmware === 'tinyg' ? 440.2 : 101.03,
+      fbs: '',
+      fbc: 'settings_default.h',
+      hp: numbers ? 3 : 'ArduinoDue',
+      hv: numbers ? 0 : 'na',
+      id: '0084-084a-29c6-8ce',
+    };
+  }
+
+  private sendBanner(): void {
+    this.send({ r: { ...this.identity(), msg: 'SYSTEM READY' }, f: this.footer(0, 1) });
   }
 
   /** Bytes from the host, as the serial port delivers them. */

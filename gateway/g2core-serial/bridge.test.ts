@@ -13,7 +13,14 @@ import type { BoardSimOptions } from './board-sim';
 const PATH = '/dev/ttyTEST0';
 let events: string[] = [];
 
-function setup(opts: BoardSimOptions & { vendorId?: string; productId?: string; serial?: string } = {}): {
+function setup(
+  opts: BoardSimOptions & {
+    vendorId?: string;
+    productId?: string;
+    serial?: string;
+    bannerOnOpen?: boolean;
+  } = {},
+): {
   mb: MockBoard;
   bridge: G2coreSerialBridge;
 } {
@@ -85,6 +92,27 @@ describe('serial g2core bridge', () => {
       `/status_report?filter=${encodeURIComponent('{"stat":1,"posx":5}')}`,
     );
     expect(changed.body).toEqual({ posx: 0 });
+    bridge.dispose();
+  });
+
+  it('a board that does not reset when the port opens (no banner): /version comes from the sys group', async () => {
+    const { bridge } = setup({ bannerOnOpen: false, firmware: '100.26' });
+    await online(bridge);
+    expect(bridge.link.banner).toBeNull();
+    const v = await call(bridge, 'GET', '/version');
+    expect(v).toEqual({
+      status: 200,
+      body: {
+        fv: 0.99,
+        fb: 100.26,
+        fbs: '',
+        fbc: 'settings_default.h',
+        hp: 3,
+        hv: 0,
+        id: '0084-084a-29c6-8ce',
+      },
+    });
+    expect(bridge.link.written).toContain('{"sys":null}\n');
     bridge.dispose();
   });
 

@@ -112,7 +112,11 @@ export class G2coreSerialBridge implements Simulator {
       state: (s) => {
         const words =
           s.state === 'online' ? `online on ${this.link.device ?? o.serial}` : this.link.downWords();
-        if (words !== last) events.event(s.state === 'online' ? 'info' : 'warn', `${o.name}: ${words}`);
+        if (words !== last)
+          events.event(
+            s.state === 'online' || s.state === 'connecting' ? 'info' : 'warn',
+            `${o.name}: ${words}`,
+          );
         last = words;
       },
     });

@@ -22,7 +22,7 @@ export interface MockBoard {
 
 export function mockBoard(
   path: string,
-  opts: BoardSimOptions & { vendorId?: string; productId?: string } = {},
+  opts: BoardSimOptions & { vendorId?: string; productId?: string; bannerOnOpen?: boolean } = {},
 ): MockBoard {
   const binding = SerialPortMock.binding;
   const create = (): void =>
@@ -51,7 +51,7 @@ export function mockBoard(
     board.connect((line) => {
       if (pb.isOpen && current === port) pb.emitData(Buffer.from(line + '\n', 'utf8'));
     });
-    board.boot();
+    board.boot(opts.bannerOnOpen !== false);
   });
   return {
     board,
