@@ -23,7 +23,7 @@ const PASS = { vera: 'viewer-pass-1', otto: 'operator-pass-1', sam: 'supervisor-
 
 type Cookies = Record<'vera' | 'otto' | 'sam', string>;
 
-async function setup(): Promise<{ gw: Running; mb: MockBoard; as: Cookies }> {
+async function setup(msPerLine = 5): Promise<{ gw: Running; mb: MockBoard; as: Cookies }> {
   const t = tempDir();
   cleanups.push(t.cleanup);
   const usersFile = writeJson(path.join(t.dir, 'users.json'), {
@@ -34,7 +34,7 @@ async function setup(): Promise<{ gw: Running; mb: MockBoard; as: Cookies }> {
     ],
   });
   SerialPortMock.binding.reset();
-  const mb = mockBoard('/dev/ttyACM0', { msPerLine: 5 });
+  const mb = mockBoard('/dev/ttyACM0', { msPerLine });
   const gw = await startGateway({
     machines: {
       file: null,
@@ -131,6 +131,38 @@ describe('serial g2core through the gateway', () => {
         ['sam', 'POST', '/board/reset'],
       ]),
     );
+  });
+
+  it('streams a 200-line job through the gateway with a hold, a resume and a kill: exact bytes, at most 4 lines in flight', async () => {
+    const { gw, mb, as } = await setup(50);
+    await until(async () => (await req(gw, as.vera, 'GET', '/status_report')).status === 200, 'online');
+    const lines = Array.from({ length: 200 }, (_, i) => `G1 X${i + 1} F1000`);
+    expect((await req(gw, as.otto, 'POST', '/job', { name: 'big.nc', gcode: lines.join('\n') })).status).toBe(
+      201,
+    );
+    expect((await req(gw, as.otto, 'PUT', '/job/1', { state: 'run' })).status).toBe(200);
+    const job = async (): Promise<{ state: string; done: number }> =>
+      (await (await req(gw, as.vera, 'GET', '/job/1')).json()) as { state: string; done: number };
+    await until(async () => (await job()).done >= 20, '20 lines');
+    expect((await req(gw, as.otto, 'PUT', '/job/1', { state: 'pause' })).status).toBe(200);
+    await until(async () => mb.board.stat === 6, 'held');
+    const held = mb.board.received.length;
+    await new Promise((r) => setTimeout(r, 200));
+    expect(mb.board.received.length).toBeLessThanOrEqual(held + 4); // at most the lines in flight
+    expect((await req(gw, as.otto, 'PUT', '/job/1', { state: 'run' })).status).toBe(200);
+    await until(async () => (await job()).done >= held + 10, '10 more lines');
+    expect((await req(gw, as.otto, 'PUT', '/job/1', { state: 'kill' })).status).toBe(200);
+    await until(async () => (await job()).state === 'killed', 'killed');
+    expect(mb.board.controls).toEqual(['!', '~', '!', '%', '\x04']);
+    const read = mb.board.received.slice(3);
+    expect(read.length).toBeLessThan(200);
+    expect(read).toEqual(lines.slice(0, read.length));
+    expect(mb.board.maxPending).toBeLessThanOrEqual(4);
+    const who = gw.gw.audit
+      .all()
+      .filter((e) => e.type === 'command' && e.path === '/job/1')
+      .map((e) => e.user);
+    expect(who).toEqual(['otto', 'otto', 'otto', 'otto']);
   });
 
   it('an unplugged board answers 503 with the reason at once, and the page sees it come back', async () => {
