@@ -320,6 +320,7 @@ describe('serial g2core bridge', () => {
     };
     expect(job.state).toBe('error');
     expect(job.error.additional_description).toMatch(/went away.*nothing is re-sent/);
+    expect(job.error).toMatchObject({ code: 11, description: 'No such device' });
     const cmd = await call(bridge, 'POST', '/operation', { optype: 'run', value: ['G0 X1'] });
     expect(cmd.status).toBe(503);
     // Still unplugged: retries say the port is not there.
@@ -392,6 +393,7 @@ describe('serial g2core bridge', () => {
     };
     expect(o.opstate).toBe('error');
     expect(o.error.additional_description).toMatch(/reset/);
+    expect(o.error).toMatchObject({ code: 200 });
     expect(bridge.link.state.state).toBe('online');
     expect(bridge.link.written.slice(sent)).toEqual(['{"sv":1}\n', '{"si":250}\n', '{"sr":null}\n']);
     expect(events.some((e) => /board reset/.test(e))).toBe(true);

@@ -183,7 +183,7 @@ export class SerialLink {
     if (this.retryTimer !== null) this.ct(this.retryTimer);
     this.retryTimer = null;
     const p = this.port;
-    this.drop('closed', 'the gateway closed the port');
+    this.drop('the gateway closed the port');
     this.setState({ state: 'closed' });
     if (p) await p.close().catch(() => undefined);
   }
@@ -241,7 +241,7 @@ export class SerialLink {
       // A board that does not answer its setup is not usable: close and try again later.
       const p = this.port;
       this.port = null;
-      this.drop('error', 'setup failed');
+      this.drop('setup failed');
       await p.close().catch(() => undefined);
       this.failOpen({
         state: 'error',
@@ -305,7 +305,7 @@ export class SerialLink {
   private lost(why: string): void {
     this.port = null;
     this.generation++;
-    this.drop('unplugged', `the board went away (${why})`);
+    this.drop(`the board went away (${why})`);
     this.setState({
       state: 'unplugged',
       detail: `the board went away (${why}); waiting for it to come back`,
@@ -315,7 +315,7 @@ export class SerialLink {
   }
 
   /** Fails everything in flight or waiting: never replayed. */
-  private drop(_kind: string, why: string): void {
+  private drop(why: string): void {
     const all = [...this.inFlight, ...this.urgent];
     this.inFlight = [];
     this.urgent = [];
@@ -340,7 +340,7 @@ export class SerialLink {
       this.banner = scalarsOf(m.info);
       if (this.bannerWaiter) this.bannerWaiter();
       else if (this.online) {
-        this.drop('reset', 'the board reset (new start-up banner)');
+        this.drop('the board reset (new start-up banner)');
         for (const l of this.listeners) l.reset?.(m.info);
         void this.resync();
       }

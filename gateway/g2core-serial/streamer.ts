@@ -64,6 +64,10 @@ const KEEP_FINISHED = 50;
 const MOVING = new Set([5, 6, 7, 8, 9, 10]);
 const STOPPED = new Set([1, 3, 4]);
 
+/**
+ * The error of an operation that ended: the firmware's own code when the board gave one; 11 (no
+ * such device) when the board went away, 200 (generic error) when it was reset.
+ */
 function statusError(code: number, additional: string): StatusError {
   return { code, description: statusText(code), additional_description: additional };
 }
@@ -104,15 +108,14 @@ export class Streamer {
       },
       reset: () => {
         this.stuck = null;
-        this.failAll(statusError(6, 'the board reset (new start-up banner); nothing was re-sent'), 'error');
+        this.failAll(statusError(200, 'the board reset (new start-up banner); nothing was re-sent'));
         for (const k of Object.keys(this.sr)) delete this.sr[k];
         this.o.events.event('warn', 'the board reset: a new start-up banner came');
       },
       state: (s) => {
         if (s.state !== 'online' && s.state !== 'connecting') {
           this.failAll(
-            statusError(6, `the board went away (${this.o.link.downWords()}); nothing will be re-sent`),
-            'error',
+            statusError(11, `the board went away (${this.o.link.downWords()}); nothing will be re-sent`),
           );
           for (const k of Object.keys(this.sr)) delete this.sr[k];
           this.stuck = null;
@@ -193,7 +196,7 @@ export class Streamer {
     if (op.state !== 'run' && op.state !== 'pause') return;
     if (reply instanceof Error) {
       const why = reply instanceof LinkDown ? reply.message : String(reply);
-      this.finish(op, statusError(6, `line ${i + 1} got no answer: ${why}; nothing is re-sent`));
+      this.finish(op, statusError(11, `line ${i + 1} got no answer: ${why}; nothing is re-sent`));
       return;
     }
     if (reply.status !== 0 && reply.status !== 3 && reply.status !== 4) {
@@ -233,7 +236,7 @@ export class Streamer {
     this.prune();
   }
 
-  private failAll(err: StatusError, _kind: string): void {
+  private failAll(err: StatusError): void {
     for (const op of [...this.ops.values()])
       if (op.state === 'run' || op.state === 'pause' || op.state === 'pend') this.finish(op, err);
   }
@@ -375,7 +378,7 @@ export class Streamer {
   /** A board reset (^X) for the "stuck in run" state: everything in flight ends, the banner follows. */
   resetBoard(): void {
     this.requireOnlineOrStuck();
-    this.failAll(statusError(6, 'the board was reset by a supervisor'), 'error');
+    this.failAll(statusError(200, 'the board was reset by a supervisor'));
     this.o.link.control(CTRL.reset);
   }
 
