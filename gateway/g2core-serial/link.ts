@@ -53,7 +53,15 @@ export type LinkState =
   | { state: 'error'; detail: string }
   | { state: 'closed' };
 
-export class LinkDown extends Error {}
+/** The board could not answer: not connected, gone, reset (`reset`), or silent past a deadline. */
+export class LinkDown extends Error {
+  constructor(
+    message: string,
+    readonly reset = false,
+  ) {
+    super(message);
+  }
+}
 
 export interface Reply {
   r: JsonObject;
@@ -315,11 +323,11 @@ export class SerialLink {
   }
 
   /** Fails everything in flight or waiting: never replayed. */
-  private drop(why: string): void {
+  private drop(why: string, reset = false): void {
     const all = [...this.inFlight, ...this.urgent];
     this.inFlight = [];
     this.urgent = [];
-    for (const f of all) f.done(new LinkDown(why));
+    for (const f of all) f.done(new LinkDown(why, reset));
   }
 
   private onData(chunk: Buffer): void {
@@ -340,7 +348,7 @@ export class SerialLink {
       this.banner = scalarsOf(m.info);
       if (this.bannerWaiter) this.bannerWaiter();
       else if (this.online) {
-        this.drop('the board reset (new start-up banner)');
+        this.drop('the board reset (new start-up banner)', true);
         for (const l of this.listeners) l.reset?.(m.info);
         void this.resync();
       }

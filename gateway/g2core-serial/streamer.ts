@@ -196,7 +196,13 @@ export class Streamer {
     if (op.state !== 'run' && op.state !== 'pause') return;
     if (reply instanceof Error) {
       const why = reply instanceof LinkDown ? reply.message : String(reply);
-      this.finish(op, statusError(11, `line ${i + 1} got no answer: ${why}; nothing is re-sent`));
+      this.finish(
+        op,
+        statusError(
+          reply instanceof LinkDown && reply.reset ? 200 : 11,
+          `line ${i + 1} got no answer: ${why}; nothing is re-sent`,
+        ),
+      );
       return;
     }
     if (reply.status !== 0 && reply.status !== 3 && reply.status !== 4) {
