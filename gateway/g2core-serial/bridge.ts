@@ -244,27 +244,35 @@ export class G2coreSerialBridge implements Simulator {
     const spec = parseFilter(query) ?? Object.fromEntries(GROUPS.map((g) => [g, null]));
     const keys = Object.keys(spec);
     if (keys.length > GROUPS.length + 20) throw new G2Fail(107, 'too many keys in one filter');
-    const out: Record<string, Json> = {};
-    for (const raw of keys) {
+    const whole = parseFilter(query) === null;
+    const asked = keys.map((raw) => {
       const k = firmwareKey(raw);
       checkKey(k);
       if (COMMAND_KEYS.has(k)) throw new G2Fail(106, `${k} is a command, not a value`);
+      return { raw, k };
+    });
+    // All asked at once: the link sends them through its window, the answers come in order.
+    const values = await Promise.all(
+      asked.map(({ k }) =>
+        this.ask(k, null).catch((e: unknown) => {
+          // The whole tree skips groups this build does not have.
+          if (whole && e instanceof G2Fail && e.code === 100) return undefined;
+          throw e;
+        }),
+      ),
+    );
+    const out: Record<string, Json> = {};
+    asked.forEach(({ raw }, i) => {
+      const v = values[i];
+      if (v === undefined) return;
       const want = spec[raw];
-      let v: Json;
-      try {
-        v = await this.ask(k, null);
-      } catch (e) {
-        // A filter over the whole tree skips groups this build does not have.
-        if (e instanceof G2Fail && e.code === 100 && !parseFilter(query)) continue;
-        throw e;
-      }
       if (isObject(want) && isObject(v)) {
         const sub: JsonObject = {};
         for (const [sk, sw] of Object.entries(want))
           if (sk in v && (sw === null || sw !== v[sk])) sub[sk] = v[sk]!;
         out[raw] = sub;
       } else if (want === null || want === undefined || want !== v) out[raw] = v;
-    }
+    });
     return jsonResponse({ value: out });
   }
 
