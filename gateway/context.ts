@@ -37,6 +37,11 @@ export type Families = Partial<Record<MachineKind, FamilyDescriptor>>;
 export interface GatewayOptions {
   /** How serial machines' ports are opened (tests: the serialport mock binding). Default: the real ports. */
   serialOpener?: PortOpener;
+  /**
+   * A serial board that sends nothing this long while it runs is "stuck in run", ms (default
+   * 10 s; SHOPDECK_SERIAL_WATCHDOG_S).
+   */
+  serialWatchdogMs?: number;
   /** Open mode served beyond this computer (SHOPDECK_OPEN=1): the page's banner says so. */
   openOnNetwork?: boolean;
   machinesFile?: string;
@@ -508,6 +513,8 @@ export function createContext(opts: GatewayOptions): GatewayContext {
   }
 
   let serialOpener: PortOpener | null = opts.serialOpener ?? null;
+  const watchdogS = envNumber(env, 'SHOPDECK_SERIAL_WATCHDOG_S');
+  const serialWatchdogMs = opts.serialWatchdogMs ?? (watchdogS !== undefined ? watchdogS * 1000 : 10_000);
 
   /**
    * A g2core board on a serial port (issue 19): the gateway's bridge answers the REST design from
@@ -521,6 +528,7 @@ export function createContext(opts: GatewayOptions): GatewayContext {
       serial: m.serial.path,
       baudRate: m.serial.baudRate,
       opener: serialOpener,
+      watchdogMs: serialWatchdogMs,
       events: {
         event: (level, message) => log[level](`${m.id}: ${message}`, { machine: m.id }),
       },

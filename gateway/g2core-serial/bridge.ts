@@ -68,8 +68,14 @@ function checkKey(k: string): void {
   if (k === 'gc' || k === 'gc2') throw new G2Fail(106, 'G-code goes through POST /operation');
 }
 
+/**
+ * The board cannot answer: the gateway's own failure, marked as the proxy marks its own
+ * (`X-Shopdeck-Gateway: error`, `gateway: true`), so the page and the watch read it as the link.
+ */
 function gatewayDown(words: string): Response {
-  return jsonResponse({ error: words, gateway: true }, 503);
+  const r = jsonResponse({ error: words, gateway: true }, 503);
+  r.headers.set('X-Shopdeck-Gateway', 'error');
+  return r;
 }
 
 export class G2coreSerialBridge implements Simulator {

@@ -4,6 +4,8 @@ import { afterEach, describe, expect, it } from 'vitest';
 import { g2coreFamily } from '../../src/controllers/g2core/family';
 import { consoleFetch, login, startGateway, tempDir, user, writeJson, type Running } from '../test-util';
 import { mockBoard, type MockBoard } from './test-board';
+import type { GatewayOptions } from '../context';
+import type { FamilyDescriptor } from '../../src/fleet/contract';
 
 /**
  * A serial g2core behind the whole gateway: the proxy routes `/machines/<id>/…` to the bridge as
@@ -23,7 +25,10 @@ const PASS = { vera: 'viewer-pass-1', otto: 'operator-pass-1', sam: 'supervisor-
 
 type Cookies = Record<'vera' | 'otto' | 'sam', string>;
 
-async function setup(msPerLine = 5): Promise<{ gw: Running; mb: MockBoard; as: Cookies }> {
+async function setup(
+  msPerLine = 5,
+  more: Partial<GatewayOptions> = {},
+): Promise<{ gw: Running; mb: MockBoard; as: Cookies }> {
   const t = tempDir();
   cleanups.push(t.cleanup);
   const usersFile = writeJson(path.join(t.dir, 'users.json'), {
@@ -56,6 +61,7 @@ async function setup(msPerLine = 5): Promise<{ gw: Running; mb: MockBoard; as: C
     dataDir: t.dir,
     usersFile,
     env: {},
+    ...more,
   });
   cleanups.push(gw.close);
   const as: Cookies = {
@@ -171,6 +177,8 @@ describe('serial g2core through the gateway', () => {
     mb.unplug();
     const r = await req(gw, as.otto, 'POST', '/operation', { optype: 'run', value: ['G91 G0 X1'] });
     expect(r.status).toBe(503);
+    // The gateway's own failure, marked as such for the page and the watch.
+    expect(r.headers.get('x-shopdeck-gateway')).toBe('error');
     const body = (await r.json()) as { error: string; gateway: boolean };
     expect(body.gateway).toBe(true);
     expect(body.error).toMatch(/Mill: the board went away/);
@@ -178,5 +186,46 @@ describe('serial g2core through the gateway', () => {
     await until(async () => (await req(gw, as.vera, 'GET', '/status_report')).status === 200, 'back online');
     // The jog sent while unplugged was never sent later.
     expect(mb.board.received.filter((l) => l.startsWith('G91'))).toEqual([]);
+  });
+
+  it('stuck in run: the machine page reads why, the watch raises an alarm, a supervisor resets the board', async () => {
+    const watch = g2coreFamily.gateway?.sharing?.watch;
+    const sharing = g2coreFamily.gateway?.sharing;
+    if (!watch || !sharing) throw new Error('the g2core family declares no watch');
+    const family: FamilyDescriptor = {
+      ...g2coreFamily,
+      gateway: { ...g2coreFamily.gateway, sharing: { ...sharing, watch: { ...watch, everyMs: 100 } } },
+    };
+    const { gw, mb, as } = await setup(100, {
+      watch: true,
+      serialWatchdogMs: 600,
+      families: { g2core: family },
+    });
+    await until(async () => (await req(gw, as.vera, 'GET', '/status_report')).status === 200, 'online');
+    const lines = Array.from({ length: 100 }, (_, i) => `G1 X${i + 1} F1000`);
+    await req(gw, as.otto, 'POST', '/job', { name: 'long.nc', gcode: lines.join('\n') });
+    await req(gw, as.otto, 'PUT', '/job/1', { state: 'run' });
+    await until(async () => mb.board.stat === 5, 'running');
+    await new Promise((r) => setTimeout(r, 300)); // the watch sees it running
+    mb.board.stuckInRun();
+    await until(async () => (await req(gw, as.vera, 'GET', '/status_report')).status === 503, 'stuck');
+    const body = (await (await req(gw, as.vera, 'GET', '/status_report')).json()) as { error: string };
+    expect(body.error).toMatch(/stuck in run.*supervisor can reset the board/);
+    await until(
+      async () =>
+        gw.gw.alarms
+          .query({ machines: null, machine: 'mill' })
+          .some((a) => a.key === 'offline-during-job' && a.clearedAt === null),
+      'the "offline during a job" alarm in the alarm centre',
+    );
+    expect((await req(gw, as.otto, 'POST', '/board/reset')).status).toBe(403);
+    expect((await req(gw, as.sam, 'POST', '/board/reset')).status).toBe(200);
+    await until(
+      async () => (await req(gw, as.vera, 'GET', '/status_report')).status === 200,
+      'back after the reset',
+    );
+    expect(((await (await req(gw, as.vera, 'GET', '/job/1')).json()) as { state: string }).state).toBe(
+      'error',
+    );
   });
 });
