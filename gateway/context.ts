@@ -514,7 +514,8 @@ export function createContext(opts: GatewayOptions): GatewayContext {
 
   let serialOpener: PortOpener | null = opts.serialOpener ?? null;
   const watchdogS = envNumber(env, 'SHOPDECK_SERIAL_WATCHDOG_S');
-  const serialWatchdogMs = opts.serialWatchdogMs ?? (watchdogS !== undefined ? watchdogS * 1000 : 10_000);
+  // At least 1 s: a shorter watchdog would call every pause between two reports a stuck board.
+  const serialWatchdogMs = opts.serialWatchdogMs ?? Math.max(1, watchdogS ?? 10) * 1000;
 
   /**
    * A g2core board on a serial port (issue 19): the gateway's bridge answers the REST design from
