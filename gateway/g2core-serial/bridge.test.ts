@@ -81,6 +81,7 @@ describe('serial g2core bridge', () => {
     const { bridge } = setup();
     await online(bridge);
     expect(bridge.link.written.slice(0, 3)).toEqual(['{"sv":1}\n', '{"si":250}\n', '{"sr":null}\n']);
+    expect(events).toContain(`info: Mill: online on ${PATH} (set up: sv 1, si 250, sr null)`);
     const v = await call(bridge, 'GET', '/version');
     expect(v.status).toBe(200);
     expect(v.body).toMatchObject({ fb: 101.03, hp: 'ArduinoDue', hv: 'na', msg: 'SYSTEM READY' });

@@ -35,6 +35,16 @@ const COMMAND_KEYS = new Set(['clear', 'clr', 'alarm', 'shutd', 'panic']);
 const MOVING = new Set([5, 6, 7, 8, 9, 10]);
 const MAX_LINES = 10_000;
 
+/**
+ * Sent on every connect and after every reset, and logged: filtered status reports at the
+ * captures' rate (a setting the board keeps), then a full report to start from.
+ */
+const SETUP: Array<[string, Json]> = [
+  ['sv', 1],
+  ['si', 250],
+  ['sr', null],
+];
+
 export interface SerialBridgeOptions {
   id: string;
   name: string;
@@ -94,12 +104,7 @@ export class G2coreSerialBridge implements Simulator {
       window: o.window,
       retryMs: o.retryMs,
       bannerWaitMs: o.bannerWaitMs,
-      // Filtered status reports at the captures' rate, and a full report to start from.
-      setup: [
-        ['sv', 1],
-        ['si', 250],
-        ['sr', null],
-      ],
+      setup: SETUP,
       now,
       setTimeout: st,
       clearTimeout: ct,
@@ -116,8 +121,11 @@ export class G2coreSerialBridge implements Simulator {
     let last = '';
     this.link.listen({
       state: (s) => {
+        const setup = SETUP.map(([k, v]) => `${k} ${String(v)}`).join(', ');
         const words =
-          s.state === 'online' ? `online on ${this.link.device ?? o.serial}` : this.link.downWords();
+          s.state === 'online'
+            ? `online on ${this.link.device ?? o.serial} (set up: ${setup})`
+            : this.link.downWords();
         if (words !== last)
           events.event(
             s.state === 'online' || s.state === 'connecting' ? 'info' : 'warn',
