@@ -28,10 +28,20 @@ import { loadMachines, redact, secretForms, type MachineEntry, type MachinesConf
 import { UserDirectory, dataDirPath, usersFilePath } from './users';
 import type { HeldSession } from './held-session';
 import { UpstreamHttp, type UpstreamLimits, type UpstreamStats } from './upstream-http';
+import { G2coreSerialBridge } from './g2core-serial/bridge';
+import type { PortOpener } from './g2core-serial/link';
+import { nativeOpener } from './g2core-serial/ports';
 
 export type Families = Partial<Record<MachineKind, FamilyDescriptor>>;
 
 export interface GatewayOptions {
+  /** How serial machines' ports are opened (tests: the serialport mock binding). Default: the real ports. */
+  serialOpener?: PortOpener;
+  /**
+   * A serial board that sends nothing this long while it runs is "stuck in run", ms (default
+   * 10 s; SHOPDECK_SERIAL_WATCHDOG_S).
+   */
+  serialWatchdogMs?: number;
   /** Open mode served beyond this computer (SHOPDECK_OPEN=1): the page's banner says so. */
   openOnNetwork?: boolean;
   machinesFile?: string;
@@ -502,9 +512,40 @@ export function createContext(opts: GatewayOptions): GatewayContext {
     return { ok: true, principal: p };
   }
 
+  let serialOpener: PortOpener | null = opts.serialOpener ?? null;
+  const watchdogS = envNumber(env, 'SHOPDECK_SERIAL_WATCHDOG_S');
+  // At least 1 s: a shorter watchdog would call every pause between two reports a stuck board.
+  const serialWatchdogMs = opts.serialWatchdogMs ?? Math.max(1, watchdogS ?? 10) * 1000;
+
+  /**
+   * A g2core board on a serial port (issue 19): the gateway's bridge answers the REST design from
+   * it, in place of a simulator (never simulated: no faults can be injected, the dev panel is off).
+   */
+  function serialBridge(m: MachineEntry & { serial: { path: string; baudRate: number } }): FaultySimulator {
+    serialOpener ??= nativeOpener();
+    const bridge = new G2coreSerialBridge({
+      id: m.id,
+      name: m.name,
+      serial: m.serial.path,
+      baudRate: m.serial.baudRate,
+      opener: serialOpener,
+      watchdogMs: serialWatchdogMs,
+      events: {
+        event: (level, message) => log[level](`${m.id}: ${message}`, { machine: m.id }),
+      },
+    });
+    return new FaultySimulator(bridge);
+  }
+
   function simulatorFor(m: MachineEntry): FaultySimulator | null {
     let sim = sims.get(m.id);
     if (sim) return sim;
+    if (m.serial) {
+      if (state.closed) return null;
+      sim = serialBridge({ ...m, serial: m.serial });
+      sims.set(m.id, sim);
+      return sim;
+    }
     const fam = opts.families[m.kind];
     if (!fam) return null;
     sim = new FaultySimulator(fam.createSimulator({ id: m.id, name: m.name }));
@@ -513,6 +554,8 @@ export function createContext(opts: GatewayOptions): GatewayContext {
   }
 
   function resetSimulator(m: MachineEntry): void {
+    // A serial board's bridge owns its port and its job: never thrown away from the dev panel.
+    if (m.serial) return;
     const held = heldSessions.get(m.id);
     if (held) {
       held.end();
@@ -524,6 +567,9 @@ export function createContext(opts: GatewayOptions): GatewayContext {
     sim.closeSockets();
     sim.dispose();
   }
+
+  // Serial boards are opened at once: the gateway owns each port from the start, viewers or not.
+  for (const m of config.machines) if (m.serial) simulatorFor(m);
 
   const builtInDemo = config.file === null && config.machines.every((m) => m.simulated);
 

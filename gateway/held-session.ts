@@ -128,7 +128,8 @@ export async function upstreamRequest(
   opts: { detached?: boolean; body?: string | Buffer } = {},
 ): Promise<UpstreamAnswer> {
   const body = method === 'GET' || method === 'HEAD' ? undefined : opts.body;
-  if (m.simulated) {
+  // Simulators and serial boards (the gateway's own bridge) answer in process.
+  if (m.simulated || m.serial) {
     const sim = ctx.simulatorFor(m);
     if (!sim) throw new Error(`no simulator for ${m.kind}`);
     const r = await sim.fetch(

@@ -277,4 +277,54 @@ describe('secret redaction', () => {
     // Secrets shorter than 4 characters are not hunted in bodies (they would mangle every answer).
     expect(forms).not.toContain('xy');
   });
+
+  describe('serial g2core boards (issue 19)', () => {
+    const board = { id: 'mill', name: 'Mill', kind: 'g2core' };
+
+    function load(machines: unknown[]) {
+      const d = dir();
+      return loadMachines({ machinesFile: writeJson(path.join(d, 'm.json'), { machines }), env: {}, cwd: d });
+    }
+
+    it('accepts "serial" instead of "url", with baudRate defaulting to 115200', () => {
+      const c = load([
+        { ...board, serial: '/dev/ttyACM0' },
+        { ...board, id: 'mill-2', serial: 'auto', baudRate: 230400 },
+        { ...board, id: 'mill-3', serial: 'COM3' },
+      ]);
+      expect(c.machines.map((m) => [m.url, m.simulated, m.serial])).toEqual([
+        [null, false, { path: '/dev/ttyACM0', baudRate: 115200 }],
+        [null, false, { path: 'auto', baudRate: 230400 }],
+        [null, false, { path: 'COM3', baudRate: 115200 }],
+      ]);
+      // The browser learns nothing about the port.
+      expect(machineInfo(c.machines[0]!)).not.toHaveProperty('serial');
+    });
+
+    it('names the file, the entry and the field for each wrong serial entry', () => {
+      const { file, message } = problemsOf([
+        { ...board, serial: '/dev/ttyACM0', url: 'http://10.0.0.9' },
+        { ...board, id: 'b', kind: 'duet', serial: '/dev/ttyACM1' },
+        { ...board, id: 'c', serial: 'ttyACM0' },
+        { ...board, id: 'd', serial: '/dev/../etc/passwd' },
+        { ...board, id: 'e', serial: '/dev/ttyACM0', baudRate: 'fast' },
+        { ...board, id: 'f', url: 'http://10.0.0.9', baudRate: 115200 },
+        { ...board, id: 'g', serial: '/dev/ttyACM0', simulated: true },
+        { ...board, id: 'h' },
+      ]);
+      expect(message).toContain(file);
+      expect(message).toContain(
+        'machines[0] (id "mill"): field "serial": use either "url" or "serial", not both',
+      );
+      expect(message).toContain('machines[1] (id "b"): field "serial": only g2core boards');
+      expect(message).toContain('machines[2] (id "c"): field "serial": "ttyACM0" must be a device');
+      expect(message).toContain('machines[3] (id "d"): field "serial"');
+      expect(message).toContain('machines[4] (id "e"): field "baudRate": must be a number');
+      expect(message).toContain('machines[5] (id "f"): field "baudRate": only used with "serial"');
+      expect(message).toContain('machines[6] (id "g"): field "serial": a simulated machine has no port');
+      expect(message).toContain(
+        'machines[7] (id "h"): field "url": missing (required unless "simulated": true, or "serial"',
+      );
+    });
+  });
 });

@@ -31,6 +31,11 @@ export interface MachineEntry {
   tlsFingerprint?: string;
   /** Where the machine stands (a bay, a room): the fleet page groups by it. */
   group?: string;
+  /**
+   * A g2core/TinyG board on a USB serial port (issue 19): the gateway owns the port and serves
+   * the g2core REST design from it (gateway/g2core-serial/). `path` is a device or "auto".
+   */
+  serial?: { path: string; baudRate: number };
 }
 
 export interface MachinesConfig {
@@ -74,6 +79,19 @@ const entrySchema = z.strictObject({
   password: z.string({ error: 'must be a string' }).min(1, 'must not be empty').optional(),
   simulated: z.boolean({ error: 'must be true or false' }).optional(),
   tlsFingerprint: z.string({ error: 'must be a string' }).optional(),
+  serial: z
+    .string({ error: 'must be a string' })
+    .trim()
+    .min(1, 'must not be empty')
+    .max(200, 'too long')
+    .refine((v) => !UNPRINTABLE.test(v), 'must be printable text (no control characters)')
+    .optional(),
+  baudRate: z
+    .number({ error: 'must be a number' })
+    .int('must be a whole number')
+    .min(300, 'must be at least 300')
+    .max(4_000_000, 'must be at most 4000000')
+    .optional(),
   group: z
     .string({ error: 'must be a string' })
     .trim()
@@ -129,6 +147,40 @@ function resolveSecret(
   return v;
 }
 
+/** Kinds whose boards the gateway can drive over a serial port. */
+const SERIAL_KINDS: ReadonlySet<MachineKind> = new Set(['g2core']);
+export const DEFAULT_BAUD_RATE = 115_200;
+
+/** A device path: /dev/…, COM<n>, \\.\COM<n>, or "auto". */
+const SERIAL_PATH = /^(auto|\/dev\/[A-Za-z0-9._/+-]+|COM[0-9]{1,3}|\\\\\.\\COM[0-9]{1,3})$/;
+
+/** The `serial` and `baudRate` fields of an entry (problems pushed, null when none or wrong). */
+function serialOf(
+  e: z.infer<typeof entrySchema>,
+  where: string,
+  simulated: boolean,
+  problems: string[],
+): { path: string; baudRate: number } | null {
+  if (e.serial === undefined) {
+    if (e.baudRate !== undefined) problems.push(`${where}: field "baudRate": only used with "serial"`);
+    return null;
+  }
+  const before = problems.length;
+  if (!SERIAL_KINDS.has(e.kind))
+    problems.push(`${where}: field "serial": only g2core boards can be reached over a serial port`);
+  else if (simulated)
+    problems.push(
+      `${where}: field "serial": a simulated machine has no port (remove "serial" or "simulated")`,
+    );
+  else if (!SERIAL_PATH.test(e.serial) || e.serial.includes('..'))
+    problems.push(
+      `${where}: field "serial": "${e.serial}" must be a device such as /dev/ttyACM0 or COM3, or "auto"`,
+    );
+  if (e.wsUrl !== undefined) problems.push(`${where}: field "wsUrl": not used with "serial"`);
+  if (problems.length > before) return null;
+  return { path: e.serial, baudRate: e.baudRate ?? DEFAULT_BAUD_RATE };
+}
+
 /** Validates the parsed JSON of a machines file. Throws MachinesFileError listing every problem. */
 export function parseMachines(file: string, data: unknown, env: NodeJS.ProcessEnv): MachineEntry[] {
   const problems: string[] = [];
@@ -169,8 +221,14 @@ export function parseMachines(file: string, data: unknown, env: NodeJS.ProcessEn
     const simulated = e.simulated ?? false;
     let url: URL | null = null;
     let wsUrl: URL | null = null;
+    const serial = serialOf(e, where, simulated, problems);
     if (e.url === undefined) {
-      if (!simulated) problems.push(`${where}: field "url": missing (required unless "simulated": true)`);
+      if (!simulated && e.serial === undefined)
+        problems.push(
+          `${where}: field "url": missing (required unless "simulated": true${e.kind === 'g2core' ? ', or "serial" for a board on USB' : ''})`,
+        );
+    } else if (e.serial !== undefined) {
+      problems.push(`${where}: field "serial": use either "url" or "serial", not both`);
     } else {
       const u = parseUrl(e.url, ['http:', 'https:']);
       if (typeof u === 'string') problems.push(`${where}: field "url": ${u}`);
@@ -219,6 +277,7 @@ export function parseMachines(file: string, data: unknown, env: NodeJS.ProcessEn
       secrets,
       ...(tlsFingerprint ? { tlsFingerprint } : {}),
       ...(e.group !== undefined ? { group: e.group } : {}),
+      ...(serial ? { serial } : {}),
     });
   });
   if (problems.length) throw new MachinesFileError(file, problems);

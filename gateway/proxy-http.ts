@@ -394,7 +394,8 @@ export function createHttpProxy(ctx: GatewayContext) {
     const pathAndQuery = t.path + (qs ? `?${qs}` : '');
 
     const url = m.url;
-    if (!m.simulated && !url) {
+    // A serial board (m.serial) is answered by the gateway's bridge, like a simulator.
+    if (!m.simulated && !url && !m.serial) {
       sendJson(res, 502, { error: `machine ${m.id} has no url` });
       return;
     }
@@ -473,6 +474,10 @@ export function createHttpProxy(ctx: GatewayContext) {
     const out = safeAnswerHeaders(given, {
       image: fam?.gateway?.imageAnswer?.(splitPath(pathAndQuery).pathname) ?? false,
     });
+    // A serial board's bridge is the gateway's own code (it builds every answer; the board's
+    // bytes never make a header): its "board not connected" answers are the gateway's failures.
+    if (m.serial && answer.status >= 500 && given['x-shopdeck-gateway'] === 'error')
+      out['X-Shopdeck-Gateway'] = 'error';
     const patterns = patternsFor(m);
     const raw = Buffer.from(await answer.arrayBuffer());
     const buf = patterns.length ? redactBytes(raw, patterns) : raw;

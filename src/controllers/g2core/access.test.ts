@@ -209,6 +209,11 @@ describe('g2core access policy', () => {
     expect(g2coreAccess(req('PUT', '/job/3'))).toMatchObject({ role: 'operator' });
     expect(g2coreAccess(req('DELETE', '/job/3'))).toMatchObject({ role: 'supervisor' });
     expect(g2coreAccess(req('DELETE', '/Job/3/'))).toMatchObject({ role: 'supervisor' });
+    // The serial bridge's board reset (^X) is the supervisor's, and says what it is.
+    expect(g2coreAccess(req('POST', '/board/reset'))).toMatchObject({
+      role: 'supervisor',
+      label: expect.stringMatching(/reset the board/),
+    });
     expect(g2coreAccess(req('POST', '/firmware'))).toMatchObject({ role: 'supervisor' });
   });
 });

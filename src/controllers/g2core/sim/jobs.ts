@@ -1,5 +1,6 @@
 import { jsonResponse } from '../../../fleet/sim';
-import { G2Fail, isRecord, readBody } from './fail';
+import { G2Fail, isRecord } from './fail';
+import { jobView, readJobUpload } from './job-wire';
 import { G2coreMotion } from './motion';
 import type { SimJob } from './state';
 
@@ -35,24 +36,7 @@ export function demoPocket(): string[] {
 
 export abstract class G2coreJobs extends G2coreMotion {
   protected async postJob(req: Request): Promise<Response> {
-    const type = req.headers.get('content-type') ?? '';
-    let name = '';
-    let text = '';
-    if (type.includes('multipart/form-data')) {
-      const form = await req.formData();
-      const file = form.get('file');
-      if (!file || typeof file === 'string') throw new G2Fail(101, 'multipart needs a "file" field');
-      name = String(form.get('name') ?? file.name ?? '');
-      if (file.size > MAX_JOB_BYTES) throw new G2Fail(10, `${file.size} bytes > ${MAX_JOB_BYTES}`);
-      text = await file.text();
-    } else {
-      const body = await readBody(req);
-      if (!isRecord(body) || typeof body.gcode !== 'string')
-        throw new G2Fail(101, 'expected {"name":…,"gcode":…}');
-      name = typeof body.name === 'string' ? body.name : '';
-      text = body.gcode;
-      if (text.length > MAX_JOB_BYTES) throw new G2Fail(10, `${text.length} bytes > ${MAX_JOB_BYTES}`);
-    }
+    const { name, text } = await readJobUpload(req, MAX_JOB_BYTES);
     const lines = text
       .split(/\r?\n/)
       .map((l) => l.trim())
@@ -100,19 +84,7 @@ export abstract class G2coreJobs extends G2coreMotion {
   protected jobView(job: SimJob): Record<string, unknown> {
     const op = job.operation !== null ? this.ops.get(job.operation) : undefined;
     const pos = this.queue.indexOf(job.id);
-    const v: Record<string, unknown> = {
-      id: job.id,
-      name: job.name,
-      state: job.state,
-      lines: job.lines.length,
-      done: op ? op.done : job.state === 'done' ? job.lines.length : 0,
-      started: job.started === null ? null : new Date(job.started).toISOString(),
-      finished: job.finished === null ? null : new Date(job.finished).toISOString(),
-      operation: job.operation,
-      position: pos < 0 ? null : pos,
-    };
-    if (op?.error) v.error = op.error;
-    return v;
+    return jobView(job, op, pos < 0 ? null : pos);
   }
 
   protected jobList(): Record<string, unknown>[] {

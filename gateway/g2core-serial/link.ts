@@ -1,0 +1,472 @@
+import {
+  BOARD_USB_IDS,
+  CTRL,
+  DEFAULT_WINDOW,
+  MAX_RX_LINE,
+  jsonLine,
+  parseBoardLine,
+  scalarsOf,
+  type BoardMessage,
+  type Json,
+  type JsonObject,
+} from './protocol';
+
+/**
+ * The gateway's one connection to a g2core/TinyG board on a serial port (issue 19): it owns the
+ * port, reads lines, and writes with line-mode flow control (protocol-notes.json
+ * `linemode_flow_control`): at most `window` lines in flight, one more per `{r}`. Single-character
+ * controls (`!`, `~`, `%`, ^D, ^X, ENQ) are written at once, always between two whole lines,
+ * and take no slot. Nothing is queued while the port is closed and nothing is replayed after a
+ * reconnect: a request made then fails at once.
+ */
+
+export interface PortInfo {
+  path: string;
+  vendorId?: string;
+  productId?: string;
+}
+
+/** What an opened port offers the link. Writes are whole lines or single controls, in order. */
+export interface OpenPort {
+  write(data: string): void;
+  close(): Promise<void>;
+}
+
+export interface PortEvents {
+  data(chunk: Buffer): void;
+  /** The port went away (unplugged, or an error ended it). */
+  closed(why: string): void;
+}
+
+export interface PortOpener {
+  open(path: string, baudRate: number, events: PortEvents): Promise<OpenPort>;
+  list(): Promise<PortInfo[]>;
+}
+
+export type LinkState =
+  | { state: 'connecting' }
+  | { state: 'online'; since: number }
+  /** The port does not exist (unplugged), or `auto` found no board. */
+  | { state: 'unplugged'; detail: string }
+  /** Another program holds the port. */
+  | { state: 'busy'; detail: string }
+  | { state: 'error'; detail: string }
+  | { state: 'closed' };
+
+/** The board could not answer: not connected, gone, reset (`reset`), or silent past a deadline. */
+export class LinkDown extends Error {
+  constructor(
+    message: string,
+    readonly reset = false,
+  ) {
+    super(message);
+  }
+}
+
+export interface Reply {
+  r: JsonObject;
+  status: number;
+}
+
+interface InFlight {
+  line: string;
+  /** The key a JSON request expects back (null for a G-code line). */
+  key: string | null;
+  done(reply: Reply | Error): void;
+}
+
+/** A G-code line offered by the streamer when a slot is free. */
+export interface DataLine {
+  line: string;
+  done(reply: Reply | Error): void;
+}
+
+export interface LinkOptions {
+  /** A device path, or 'auto': the first port with a g2core/TinyG USB id. */
+  path: string;
+  baudRate: number;
+  opener: PortOpener;
+  window?: number;
+  /** After opening, how long to wait for a start-up banner before the setup is sent. */
+  bannerWaitMs?: number;
+  /** Reconnect attempts: first after this, doubling up to 10 s. */
+  retryMs?: number;
+  /** A JSON request with no `{r}` within this fails (the line may have reached the board). */
+  requestTimeoutMs?: number;
+  /** Setup sent on every (re)connect; the answers are awaited before the link is online. */
+  setup?: Array<[string, Json]>;
+  setTimeout?: (fn: () => void, ms: number) => unknown;
+  clearTimeout?: (t: unknown) => void;
+  now?: () => number;
+}
+
+export interface LinkListener {
+  message?(m: BoardMessage): void;
+  state?(s: LinkState): void;
+  /** A banner came while connected: the board reset (new banner), everything in flight is lost. */
+  reset?(info: JsonObject): void;
+}
+
+/** Open errors worded for the machine page: the OS says "busy" or "locked" for a held port. */
+export function classifyOpenError(e: unknown, path: string): LinkState {
+  const msg = e instanceof Error ? e.message : String(e);
+  const code = (e as { code?: unknown } | null)?.code;
+  if (/Permission denied/i.test(msg) || code === 'EACCES')
+    return {
+      state: 'error',
+      detail: `${path}: no permission to open it (on Linux, add the console's user to the "dialout" group)`,
+    };
+  if (/lock|busy|EBUSY|Resource temporarily unavailable|Access denied/i.test(msg) || code === 'EBUSY')
+    return { state: 'busy', detail: `${path} is held by another program (close it to let Shopdeck connect)` };
+  if (/ENOENT|does not exist|No such file|not found|cannot find/i.test(msg) || code === 'ENOENT')
+    return { state: 'unplugged', detail: `${path} is not there: the board is unplugged or switched off` };
+  return { state: 'error', detail: `${path} cannot be opened: ${msg.slice(0, 200)}` };
+}
+
+export function pickBoardPort(ports: PortInfo[]): PortInfo | null {
+  return (
+    ports.find((p) =>
+      BOARD_USB_IDS.some(
+        (id) => p.vendorId?.toLowerCase() === id.vendorId && p.productId?.toLowerCase() === id.productId,
+      ),
+    ) ?? null
+  );
+}
+
+export class SerialLink {
+  private port: OpenPort | null = null;
+  private current: LinkState = { state: 'connecting' };
+  private rx = '';
+  private inFlight: InFlight[] = [];
+  private urgent: InFlight[] = [];
+  private retryTimer: unknown = null;
+  private retryMs: number;
+  private stopped = false;
+  private generation = 0;
+  private readonly listeners = new Set<LinkListener>();
+  /** The streamer's next line, pulled when a slot is free (null: none now). */
+  source: (() => DataLine | null) | null = null;
+  /** The board's identity from its banner, if one was seen. */
+  banner: JsonObject | null = null;
+  /** The device actually opened (the resolved path of 'auto'). */
+  device: string | null = null;
+  /** Every byte written, oldest first, for tests and the developer's log (bounded). */
+  readonly written: string[] = [];
+  /** Most lines ever in flight at once (tests check the window is never overfilled). */
+  maxInFlight = 0;
+
+  private readonly window: number;
+  private readonly st: (fn: () => void, ms: number) => unknown;
+  private readonly ct: (t: unknown) => void;
+  private readonly now: () => number;
+
+  constructor(private readonly opts: LinkOptions) {
+    this.window = Math.max(1, opts.window ?? DEFAULT_WINDOW);
+    this.retryMs = opts.retryMs ?? 1000;
+    this.st = opts.setTimeout ?? ((fn, ms) => setTimeout(fn, ms));
+    this.ct = opts.clearTimeout ?? ((t) => clearTimeout(t as ReturnType<typeof setTimeout>));
+    this.now = opts.now ?? Date.now;
+  }
+
+  get state(): LinkState {
+    return this.current;
+  }
+
+  get online(): boolean {
+    return this.current.state === 'online';
+  }
+
+  listen(l: LinkListener): () => void {
+    this.listeners.add(l);
+    return () => this.listeners.delete(l);
+  }
+
+  start(): void {
+    this.stopped = false;
+    void this.connect();
+  }
+
+  async stop(): Promise<void> {
+    this.stopped = true;
+    if (this.retryTimer !== null) this.ct(this.retryTimer);
+    this.retryTimer = null;
+    const p = this.port;
+    this.drop('the gateway closed the port');
+    this.setState({ state: 'closed' });
+    if (p) await p.close().catch(() => undefined);
+  }
+
+  private setState(s: LinkState): void {
+    this.current = s;
+    for (const l of this.listeners) l.state?.(s);
+  }
+
+  private async connect(): Promise<void> {
+    if (this.stopped || this.port) return;
+    const gen = ++this.generation;
+    this.setState({ state: 'connecting' });
+    let path = this.opts.path;
+    try {
+      if (path === 'auto') {
+        const found = pickBoardPort(await this.opts.opener.list());
+        if (!found) {
+          this.failOpen({
+            state: 'unplugged',
+            detail: 'no g2core or TinyG board found on USB (plug it in, or name its port in "serial")',
+          });
+          return;
+        }
+        path = found.path;
+      }
+      const port = await this.opts.opener.open(path, this.opts.baudRate, {
+        data: (chunk) => {
+          if (gen === this.generation) this.onData(chunk);
+        },
+        closed: (why) => {
+          if (gen === this.generation) this.lost(why);
+        },
+      });
+      if (this.stopped || gen !== this.generation) {
+        await port.close().catch(() => undefined);
+        return;
+      }
+      this.port = port;
+      this.device = path;
+      this.rx = '';
+    } catch (e) {
+      this.failOpen(classifyOpenError(e, path));
+      return;
+    }
+    // Boards that reset when the port opens (TinyG, the Due's programming port) send their banner
+    // first: a request written before it would be lost. Wait for it, briefly.
+    await this.bannerOrTimeout(gen);
+    if (gen !== this.generation || !this.port) return;
+    // Setup: the reports the bridge reads (status reports on, at the rate of the captures).
+    try {
+      for (const [k, v] of this.opts.setup ?? []) await this.request(k, v, true);
+    } catch (e) {
+      if (gen !== this.generation || !this.port) return;
+      // A board that does not answer its setup is not usable: close and try again later.
+      const p = this.port;
+      this.port = null;
+      this.drop('setup failed');
+      await p.close().catch(() => undefined);
+      this.failOpen({
+        state: 'error',
+        detail: `${path}: the board did not answer (${e instanceof Error ? e.message : String(e)}); is it a g2core in JSON mode at ${this.opts.baudRate} baud?`,
+      });
+      return;
+    }
+    this.retryMs = this.opts.retryMs ?? 1000;
+    this.setState({ state: 'online', since: this.now() });
+    this.pump();
+  }
+
+  private bannerWaiter: (() => void) | null = null;
+
+  private bannerOrTimeout(gen: number): Promise<void> {
+    return new Promise<void>((resolve) => {
+      const t = this.st(() => {
+        this.bannerWaiter = null;
+        resolve();
+      }, this.opts.bannerWaitMs ?? 1500);
+      this.bannerWaiter = () => {
+        this.ct(t);
+        this.bannerWaiter = null;
+        resolve();
+      };
+      if (gen !== this.generation) this.bannerWaiter();
+    });
+  }
+
+  /** After a reset the board starts from its saved settings: the setup is sent again. */
+  private async resync(): Promise<void> {
+    const gen = this.generation;
+    this.setState({ state: 'connecting' });
+    try {
+      for (const [k, v] of this.opts.setup ?? []) await this.request(k, v, true);
+    } catch {
+      // Not answered: the port stays open, the next banner or request tells.
+    }
+    if (gen === this.generation && this.port) {
+      this.setState({ state: 'online', since: this.now() });
+      this.pump();
+    }
+  }
+
+  private failOpen(s: LinkState): void {
+    this.setState(s);
+    this.scheduleRetry();
+  }
+
+  private scheduleRetry(): void {
+    if (this.stopped || this.retryTimer !== null) return;
+    const ms = this.retryMs;
+    this.retryMs = Math.min(10_000, this.retryMs * 2);
+    this.retryTimer = this.st(() => {
+      this.retryTimer = null;
+      void this.connect();
+    }, ms);
+  }
+
+  /** The port went away under us (unplugged, or the OS ended it). */
+  private lost(why: string): void {
+    this.port = null;
+    this.generation++;
+    this.drop(`the board went away (${why})`);
+    this.setState({
+      state: 'unplugged',
+      detail: `the board went away (${why}); waiting for it to come back`,
+    });
+    this.retryMs = this.opts.retryMs ?? 1000;
+    this.scheduleRetry();
+  }
+
+  /** Fails everything in flight or waiting: never replayed. */
+  private drop(why: string, reset = false): void {
+    const all = [...this.inFlight, ...this.urgent];
+    this.inFlight = [];
+    this.urgent = [];
+    for (const f of all) f.done(new LinkDown(why, reset));
+  }
+
+  private onData(chunk: Buffer): void {
+    this.rx += chunk.toString('utf8');
+    let i: number;
+    while ((i = this.rx.search(/[\r\n]/)) >= 0) {
+      const line = this.rx.slice(0, i);
+      this.rx = this.rx.slice(i + 1);
+      if (line.trim() !== '') this.onLine(line);
+    }
+    // An endless line is noise (or hostile): dropped, not kept.
+    if (this.rx.length > MAX_RX_LINE) this.rx = '';
+  }
+
+  private onLine(line: string): void {
+    const m = parseBoardLine(line);
+    if (m.type === 'banner') {
+      this.banner = scalarsOf(m.info);
+      if (this.bannerWaiter) this.bannerWaiter();
+      else if (this.online) {
+        this.drop('the board reset (new start-up banner)', true);
+        for (const l of this.listeners) l.reset?.(m.info);
+        void this.resync();
+      }
+    } else if (m.type === 'response') {
+      this.onResponse(m.r, m.status);
+    }
+    for (const l of this.listeners) l.message?.(m);
+    this.pump();
+  }
+
+  private onResponse(r: JsonObject, status: number): void {
+    if (this.inFlight.length === 0) return; // a stray {r} (old builds answer "!" with one)
+    // A JSON request's reply names its key: lines before it that never answered were flushed.
+    const keys = Object.keys(r).map((k) => k.toLowerCase());
+    let at = 0;
+    if (keys.length > 0) {
+      const match = this.inFlight.findIndex((f) => f.key !== null && keys.includes(f.key.toLowerCase()));
+      if (match > 0) at = match;
+    }
+    const skipped = this.inFlight.splice(0, at);
+    for (const s of skipped) s.done(new LinkDown('no answer from the board (flushed)'));
+    const f = this.inFlight.shift();
+    f?.done({ r, status });
+  }
+
+  /** Lines in flight are forgotten (after a flush they never answer): the window opens again. */
+  forgetInFlight(why: string): void {
+    const gone = this.inFlight.filter((f) => f.key === null);
+    this.inFlight = this.inFlight.filter((f) => f.key !== null);
+    for (const g of gone) g.done(new LinkDown(why));
+    this.pump();
+  }
+
+  get linesInFlight(): number {
+    return this.inFlight.length;
+  }
+
+  private write(data: string): void {
+    if (!this.port) throw new LinkDown('the board is not connected');
+    this.written.push(data);
+    if (this.written.length > 100_000) this.written.splice(0, 50_000);
+    this.port.write(data);
+  }
+
+  /** Sends what fits: JSON requests first, then the streamer's lines. */
+  pump(): void {
+    if (!this.port) return;
+    while (this.inFlight.length < this.window) {
+      const next = this.urgent.shift() ?? this.pullData();
+      if (!next) return;
+      this.inFlight.push(next);
+      this.maxInFlight = Math.max(this.maxInFlight, this.inFlight.length);
+      try {
+        this.write(next.line + '\n');
+      } catch (e) {
+        this.inFlight.pop();
+        next.done(e instanceof Error ? e : new Error(String(e)));
+        return;
+      }
+    }
+  }
+
+  private pullData(): InFlight | null {
+    if (!this.online) return null;
+    const d = this.source?.();
+    return d ? { line: d.line, key: null, done: d.done } : null;
+  }
+
+  /**
+   * A JSON request (`{"key":value}`), answered by its `{r}`. Fails at once when the board is not
+   * connected; never queued for later.
+   */
+  request(key: string, value: Json, duringSetup = false): Promise<Reply> {
+    if (!this.port || (!duringSetup && !this.online)) return Promise.reject(new LinkDown(this.downWords()));
+    return new Promise<Reply>((resolve, reject) => {
+      const timer = this.st(() => {
+        const i = this.urgent.indexOf(entry);
+        if (i >= 0) this.urgent.splice(i, 1);
+        const j = this.inFlight.indexOf(entry);
+        if (j >= 0) this.inFlight.splice(j, 1);
+        settle(new LinkDown(`no answer from the board to ${key} within ${this.timeoutMs / 1000} s`));
+        this.pump();
+      }, this.timeoutMs);
+      let settled = false;
+      const settle = (r: Reply | Error): void => {
+        if (settled) return;
+        settled = true;
+        this.ct(timer);
+        if (r instanceof Error) reject(r);
+        else resolve(r);
+      };
+      const entry: InFlight = { line: jsonLine(key, value), key, done: settle };
+      this.urgent.push(entry);
+      this.pump();
+    });
+  }
+
+  private get timeoutMs(): number {
+    return this.opts.requestTimeoutMs ?? 5000;
+  }
+
+  /** A single-character control, written at once between lines. Throws when not connected. */
+  control(c: (typeof CTRL)[keyof typeof CTRL]): void {
+    if (!this.port) throw new LinkDown(this.downWords());
+    this.write(c);
+  }
+
+  downWords(): string {
+    const s = this.current;
+    switch (s.state) {
+      case 'online':
+        return 'online';
+      case 'connecting':
+        return 'connecting to the board';
+      case 'closed':
+        return 'the gateway closed the port';
+      default:
+        return s.detail;
+    }
+  }
+}
