@@ -1,4 +1,5 @@
 import configGroups from '../../src/controllers/g2core/sim/data/config-groups-100.12.json' with { type: 'json' };
+import { STUCK_IN_RUN } from '../../src/controllers/g2core/codes';
 import { jsonResponse, splitPath, type Simulator } from '../../src/fleet/sim';
 import {
   G2Fail,
@@ -235,7 +236,7 @@ export class G2coreSerialBridge implements Simulator {
     const stuck = this.streamer.stuck;
     if (stuck) {
       return gatewayDown(
-        `${this.o.name}: the board has sent nothing since line ${stuck.line} while running (stuck in run). A supervisor can reset the board (POST /machines/${this.o.id}/board/reset)`,
+        `${this.o.name}: the board has sent nothing since line ${stuck.line} while running (${STUCK_IN_RUN}). A supervisor can reset the board (POST /machines/${this.o.id}/board/reset)`,
       );
     }
     const sr = this.streamer.sr;

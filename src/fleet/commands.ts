@@ -75,6 +75,11 @@ export interface CommandDecl<A = void> {
    * timeouts and progress; file transfers need not say so, they are recognized).
    */
   deadlineMs?: number | null;
+  /**
+   * A recovery meant for a link in doubt (the gateway reports the controller stuck, so its reads
+   * fail): sent while reconnecting, as stops are. Never for a command that starts anything.
+   */
+  whileInDoubt?: true;
   /** Does the work. Resolves with a short result for the log ("ok", "job paused"). */
   perform: (args: A, ctx: CommandContext) => Promise<string | void>;
 }
@@ -344,7 +349,7 @@ export class CommandRunner {
     // A stop is always worth one attempt (the socket may be down while HTTP still works); it is
     // sent once, now, and never queued or retried. Everything else waits for a live link whose
     // data is fresh: while the link is in doubt, what the operator sees may not be what is.
-    const stop = cmd.hazard === 'stop';
+    const stop = cmd.hazard === 'stop' || cmd.whileInDoubt === true;
     if (!stop) {
       const doubt = this.doubt(snap);
       if (doubt) return doubt;

@@ -185,6 +185,14 @@ export class G2coreClient {
     await this.http.json({ path: '/machine/clear', commandId }, machineValueResponse);
   }
 
+  /**
+   * The hard reset (^X) of a board the gateway drives over USB serial (gateway/g2core-serial/):
+   * `POST /board/reset`, answered by the gateway's bridge (a REST g2core has no such endpoint).
+   */
+  async resetBoard(commandId: string): Promise<void> {
+    await this.http.json({ method: 'POST', path: '/board/reset', commandId }, machineValueResponse);
+  }
+
   /** Runs G-code / JSON lines as an operation; resolves with its id. */
   runOperation(value: string[] | string, commandId: string): Promise<string> {
     return this.http.json(

@@ -77,6 +77,13 @@ export const STAT_INTERLOCK = 11;
 export const STAT_SHUTDOWN = 12;
 export const STAT_PANIC = 13;
 
+/**
+ * The words of the gateway's serial bridge (gateway/g2core-serial/) for a board that went silent
+ * while running (the firmware's known "stuck in run" state): the page offers a supervisor the
+ * board's hard reset (`POST /board/reset`) while its status reads answer with them.
+ */
+export const STUCK_IN_RUN = 'stuck in run';
+
 /** Words for a stat value; unknown values say so with the raw number. */
 export function statLabel(stat: number | null | undefined): string {
   if (stat === null || stat === undefined) return 'Unknown';

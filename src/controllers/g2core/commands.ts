@@ -3,7 +3,7 @@ import type { AnyCommand, CommandDecl } from '../../fleet/commands';
 import type { SessionContext } from '../../fleet/contract';
 import { defineCommands, type RunToken } from '../../fleet/kernel';
 import type { MachineSnapshot } from '../../fleet/types';
-import { STAT_ALARM, STAT_HOLD, STAT_PANIC, STAT_SHUTDOWN, statLabel } from './codes';
+import { STAT_ALARM, STAT_HOLD, STAT_PANIC, STAT_SHUTDOWN, STUCK_IN_RUN, statLabel } from './codes';
 import type { G2coreClient } from './client';
 import {
   IDLE,
@@ -49,6 +49,7 @@ export interface G2Commands {
   kill: CommandDecl<void>;
   stopJog: CommandDecl<void>;
   clearAlarm: CommandDecl<void>;
+  resetBoard: CommandDecl<void>;
   home: CommandDecl<{ axes: AxisLetter[] }>;
   jog: CommandDecl<JogArgs>;
   mdi: CommandDecl<{ text: string }>;
@@ -82,6 +83,11 @@ const moving = ({ snapshot, g2 }: States): true | string => {
   if (st === null || !MOVING.has(st)) return 'Nothing is moving';
   return inMotion(g2);
 };
+
+/** The gateway's serial bridge says the board is stuck in run (its status reads answer so). */
+export function isStuckInRun(snapshot: MachineSnapshot): boolean {
+  return snapshot.problem?.message.includes(STUCK_IN_RUN) ?? false;
+}
 
 /** The job list changes with these: the Jobs tab (and the next slow poll) reads it again. */
 const JOBS = [JOBS_KEY];
@@ -157,6 +163,24 @@ export function declareCommands(host: CommandHost): G2Commands {
     perform: async (_a, c) => {
       await host.ops.clearAlarm(c.commandId);
       return 'alarm cleared';
+    },
+  });
+  const resetBoard = cmds.define({
+    id: 'g2core.reset-board',
+    label: 'Reset the board',
+    hazard: 'dangerous',
+    role: 'supervisor',
+    confirm:
+      'Reset the board (^X)? The job is abandoned where it stands and the board restarts: check the machine, then home it before running again.',
+    // Its reads fail while the board is stuck (the link is "reconnecting"): it goes all the same.
+    whileInDoubt: true,
+    available: ({ snapshot }) =>
+      isStuckInRun(snapshot) ? true : 'Only for a board the gateway reports stuck in run',
+    invalidates: JOBS,
+    perform: async (_a, c) => {
+      await client.resetBoard(c.commandId);
+      host.refresh(true);
+      return 'reset sent to the board';
     },
   });
   const home = cmds.define<{ axes: AxisLetter[] }>({
@@ -293,6 +317,7 @@ export function declareCommands(host: CommandHost): G2Commands {
     kill,
     stopJog,
     clearAlarm,
+    resetBoard,
     home,
     jog,
     mdi,

@@ -351,4 +351,44 @@ describe('G2coreSession through msw', () => {
     expect(s.detail.getState().jobs[0]?.state.state).toBe('killed');
     s.stop();
   });
+
+  it('a serial board the gateway reports stuck in run: a supervisor may reset it (POST /board/reset), nobody else', async () => {
+    const resets: string[] = [];
+    let stuck = false;
+    const inner = sim.fetch.bind(sim);
+    sim.fetch = async (req, path) => {
+      if (path === '/board/reset' && req.method === 'POST') {
+        resets.push(req.headers.get('x-shopdeck-command') ?? '');
+        stuck = false;
+        return Response.json({ value: 'reset sent' });
+      }
+      if (stuck && path.startsWith('/status_report'))
+        return Response.json(
+          {
+            error:
+              'CNC: the board has sent nothing since line 42 while running (stuck in run). A supervisor can reset the board',
+            gateway: true,
+          },
+          { status: 503, headers: { 'X-Shopdeck-Gateway': 'error' } },
+        );
+      return inner(req, path);
+    };
+    const s = makeSession();
+    await settle();
+    expect(s.ctx.commands.blockedReason(s.resetBoard)).toMatch(/stuck in run/);
+    await expect(s.ctx.commands.run(s.resetBoard, undefined)).rejects.toBeInstanceOf(CommandRefused);
+    stuck = true;
+    await settle(2000);
+    expect(s.ctx.snapshot.getState().problem?.message).toContain('stuck in run');
+    role = 'operator';
+    expect(s.ctx.commands.blockedReason(s.resetBoard)).not.toBeNull();
+    await expect(s.ctx.commands.run(s.resetBoard, undefined)).rejects.toBeInstanceOf(CommandRefused);
+    expect(resets).toEqual([]);
+    role = 'supervisor';
+    expect(s.ctx.commands.blockedReason(s.resetBoard)).toBeNull();
+    await s.ctx.commands.run(s.resetBoard, undefined);
+    expect(resets.length).toBe(1);
+    expect(resets[0]).not.toBe('');
+    s.stop();
+  });
 });

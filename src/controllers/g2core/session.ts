@@ -151,6 +151,7 @@ export class G2coreSession extends KernelSession implements CommandHost {
   readonly kill = this.decl.kill;
   readonly stopJog = this.decl.stopJog;
   readonly clearAlarm = this.decl.clearAlarm;
+  readonly resetBoard = this.decl.resetBoard;
   readonly home = this.decl.home;
   readonly jog = this.decl.jog;
   readonly mdi = this.decl.mdi;

@@ -4,6 +4,7 @@ import { CommandButton, useSnapshot, useStoreSelect } from '../../../fleet/react
 import { Notice, ProgressBar, formatDuration, formatNumber, type Tone } from '../../../ui';
 import { decodeEnum, statLabel } from '../codes';
 import type { G2coreSession } from '../session';
+import { isStuckInRun } from '../commands';
 
 /** Colour of each machine state (stat). */
 export function statTone(stat: number | null): Tone {
@@ -103,6 +104,8 @@ export function ModalState({ session }: { session: G2coreSession }) {
 /** Feedhold, cycle start, kill and clear alarm: the buttons an operator needs at all times. */
 export function Controls({ session }: { session: G2coreSession }) {
   const { commands: runner, snapshot } = session.ctx;
+  // A serial board the gateway reports stuck in run: its hard reset, for a supervisor (issue 19).
+  const stuck = useSnapshot(session.ctx, isStuckInRun);
   return (
     <div className="g2-controls" data-testid="g2-controls">
       <CommandButton
@@ -135,6 +138,17 @@ export function Controls({ session }: { session: G2coreSession }) {
       <CommandButton runner={runner} snapshot={snapshot} command={session.clearAlarm} args={undefined}>
         Clear alarm
       </CommandButton>
+      {stuck && (
+        <CommandButton
+          runner={runner}
+          snapshot={snapshot}
+          command={session.resetBoard}
+          args={undefined}
+          variant="danger"
+        >
+          Reset the board
+        </CommandButton>
+      )}
     </div>
   );
 }
