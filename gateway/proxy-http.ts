@@ -792,8 +792,14 @@ export function createHttpProxy(ctx: GatewayContext) {
         const a = await answer;
         return { status: a.status, headers: a.headers, body: a.body };
       } catch (e) {
-        // Larger than the socket takes, or cut: the page reads it over HTTP (it streams there).
-        return { fallback: e instanceof Error ? e.message : String(e) };
+        // Larger than the socket takes, or cut. The controller was asked already: the page is told
+        // it failed, never sent to ask again (a read may be consumed, as RepRapFirmware's rr_reply).
+        const why = e instanceof Error ? e.message : String(e);
+        return {
+          status: 502,
+          headers: { 'content-type': 'application/json; charset=utf-8', 'x-shopdeck-gateway': 'error' },
+          body: Buffer.from(JSON.stringify({ error: `${m.name}: ${why}`, gateway: true })),
+        };
       }
     };
     const t = splitTarget(rest);
@@ -848,5 +854,5 @@ export function createHttpProxy(ctx: GatewayContext) {
 /** What a read sent over a page's read socket comes to (proxy-http.ts `socketRead`). */
 export type SocketReadAnswer =
   | { status: number; headers: Record<string, string | string[]>; body: Buffer }
-  /** Not answered on the socket: the page sends it over HTTP (a command; an answer too large). */
+  /** Not sent: the page sends it over HTTP (a command). */
   | { fallback: string };

@@ -251,4 +251,32 @@ describe('attacks on the read socket', () => {
     expect(early.map((m) => m.id)).toEqual([n - 4, n - 3, n - 2, n - 1, n]);
     for (const h of held.splice(0)) h();
   });
+
+  it('an endless answer is cut at the socket’s limit: the page gets the gateway’s error, the controller was asked once', async () => {
+    const s = await setup();
+    s.stub.respond = (_req, res) => {
+      res.writeHead(200, { 'Content-Type': 'application/json' });
+      const chunk = Buffer.alloc(1024 * 1024, 0x20);
+      let sent = 0;
+      const more = (): void => {
+        while (sent < READ_SOCKET_LIMITS.maxAnswer + 2 * chunk.length) {
+          sent += chunk.length;
+          if (!res.write(chunk)) {
+            res.once('drain', more);
+            return;
+          }
+        }
+        res.end('{}');
+      };
+      res.on('error', () => undefined);
+      more();
+    };
+    const cookie = await login(s.gw.url, 'vera', 'viewer-pass-1');
+    const r = await reader(s, cookie);
+    const a = await r.ask({ id: 1, url: '/machines/p1/rr_reply' });
+    expect(a.status).toBe(502);
+    expect((a.headers as Record<string, string>)['x-shopdeck-gateway']).toBe('error');
+    expect(String(a.body)).toMatch(/larger than/);
+    expect(s.stub.seen.filter((q) => q.url === '/rr_reply').length).toBe(1);
+  });
 });

@@ -24,8 +24,10 @@ import type { SocketReadAnswer } from './proxy-http';
  * Page → gateway: `{"id": n, "url": "/machines/<id>/<path>?<query>", "headers": {…}}`, or
  * `{"cancel": n}` (the page gave up: its answer is not sent).
  * Gateway → page: `{"id": n, "status": s, "headers": {…}, "body": "<text>"}`, or
- * `{"id": n, "fallback": "<why>"}` (read it over HTTP: a command, an answer over the size the
- * socket takes, too many reads at once).
+ * `{"id": n, "fallback": "<why>"}` for a read that was not sent (read it over HTTP: a command, too
+ * many reads at once). A read that was sent is answered, if need be with the gateway's own error
+ * (an answer over the size the socket takes, a cut one): never given back to be asked again, as
+ * a read may be consumed (RepRapFirmware hands each `rr_reply` out once).
  */
 
 export const READ_SOCKET_PATH = '/api/reads';
@@ -35,10 +37,10 @@ export const READ_SOCKET_LIMITS = {
   maxMessage: 16 * 1024,
   /** Reads answered at once per socket; more are told to go over HTTP. */
   maxInFlight: 64,
-  /** Largest answer sent on the socket; a larger one is read over HTTP (it streams there). */
-  maxAnswer: 2 * 1024 * 1024,
+  /** Largest answer sent on the socket; a larger one is the gateway's 502 (no read answers so much). */
+  maxAnswer: 8 * 1024 * 1024,
   /** A page that reads its socket slower than this much is waiting is closed (it reads over HTTP). */
-  maxBuffered: 8 * 1024 * 1024,
+  maxBuffered: 16 * 1024 * 1024,
 };
 
 /** The answer headers a page gets on the socket (what the console's clients read). */
@@ -196,7 +198,9 @@ export function createReadSocket(ctx: GatewayContext, host: ReadSocketHost, limi
             if (a.status === 401) client.close(4401, 'log in again');
           },
           (e: unknown) => {
-            if (!cancelled.has(id)) send({ id, fallback: e instanceof Error ? e.message : String(e) });
+            // It may have reached the controller: an error, never "ask again over HTTP".
+            if (!cancelled.has(id))
+              send(answerOf(id, 502, { error: e instanceof Error ? e.message : String(e), gateway: true }));
           },
         )
         .finally(() => {

@@ -159,28 +159,30 @@ describe('HttpClient over the read socket', () => {
     ]);
   });
 
-  it('a read the gateway sends back ("fallback") is read over HTTP', async () => {
+  it('a read the gateway did not send ("fallback": too many at once, a command) is read over HTTP', async () => {
     const { sock } = openSocket();
     const c = new HttpClient({ machineId: 'm1' });
     const got = c.json({ path: '/big' }, Status);
     await tick();
-    sock.say({ id: sock.asked().at(-1)?.id, fallback: 'the answer is larger than 2097152 bytes' });
+    sock.say({ id: sock.asked().at(-1)?.id, fallback: 'too many reads at once' });
     await tick();
     expect(fetch.last().url).toBe(`${O}/machines/m1/big`);
     fetch.last().answer(200, '{"state":"big"}');
     await expect(got).resolves.toEqual({ state: 'big' });
   });
 
-  it('reads waiting when the socket closes are read over HTTP; the socket opens again after 1 s, not before', async () => {
+  it('a read waiting when the socket closes fails as a broken connection and is not sent again; the socket opens again after 1 s, not before', async () => {
     const { sock } = openSocket();
     const c = new HttpClient({ machineId: 'm1' });
-    const got = c.json({ path: '/status' }, Status);
+    const got = c.json({ path: '/rr_reply' }, Status).catch((e: unknown) => e);
     await tick();
     sock.drop();
-    await tick();
-    expect(fetch.last().url).toBe(`${O}/machines/m1/status`);
-    fetch.last().answer(200, '{"state":"idle"}');
-    await expect(got).resolves.toEqual({ state: 'idle' });
+    const e = await got;
+    expect(e).toBeInstanceOf(LinkError);
+    expect((e as LinkError).kind).toBe('network');
+    expect((e as LinkError).message).toMatch(/connection to the console server broke/);
+    // Never asked again over HTTP: the read may have been consumed (RepRapFirmware's rr_reply).
+    expect(fetch.calls.length).toBe(1); // the warm-up only
     void c.raw({ path: '/a' }).catch(() => undefined);
     expect(FakeSocket.all.length).toBe(1);
     clock += 1000;
@@ -229,16 +231,15 @@ describe('HttpClient over the read socket', () => {
     expect(fetch.calls.length).toBe(1); // not read again over HTTP either
   });
 
-  it('a malformed message from the gateway closes the socket; waiting reads go over HTTP', async () => {
+  it('a malformed message from the gateway closes the socket; a waiting read fails, not sent again', async () => {
     const { sock } = openSocket();
     const c = new HttpClient({ machineId: 'm1' });
-    const got = c.json({ path: '/status' }, Status);
+    const got = c.json({ path: '/status' }, Status).catch((e: unknown) => e);
     await tick();
     sock.say('<html>not the gateway</html>');
-    await tick();
     expect(sock.closedWith).toBe(1002);
-    fetch.last().answer(200, '{"state":"idle"}');
-    await expect(got).resolves.toEqual({ state: 'idle' });
+    expect(((await got) as LinkError).kind).toBe('network');
+    expect(fetch.calls.length).toBe(1);
   });
 });
 

@@ -9,8 +9,9 @@ import { apiOrigin, wsUrlFor } from './origin';
  * Only reads go here (HttpClient: a GET without a body, not a command, not a binary answer), and
  * only while the socket is open: there is no queue. When it is not open, a read goes over HTTP as
  * before and the socket is opened again in the background (backing off 1 s → 30 s). A read the
- * socket did not answer (it closed, the gateway said "fallback": a command, an answer too large)
- * is read over HTTP; a read is safe to send again, and nothing else ever comes here.
+ * gateway did not send ("fallback": it is a command, too many at once) is read over HTTP. A read
+ * that was sent is never sent again: when the socket closes under it, it fails as a fetch whose
+ * connection broke (a read may be consumed: RepRapFirmware hands each `rr_reply` out once).
  */
 
 export interface SocketAnswer {
@@ -21,6 +22,7 @@ export interface SocketAnswer {
 
 interface Pending {
   settle(a: SocketAnswer | null): void;
+  fail(e: Error): void;
 }
 
 /** Reads waiting for their answer at most; more go over HTTP. */
@@ -47,8 +49,10 @@ export class ReadSocket {
 
   /**
    * Sends a read over the socket when it is open. Null: not open now (read it over HTTP; the
-   * socket is being opened). The promise gives the answer, or null: read it over HTTP. It rejects
-   * when `signal` aborts (a timeout, a stopped session): the answer is then not waited for.
+   * socket is being opened). The promise gives the answer, or null: the gateway did not send it,
+   * read it over HTTP. It rejects when `signal` aborts (a timeout, a stopped session: the answer
+   * is not waited for) and when the socket closes before the answer came (the read is not sent
+   * again).
    */
   read(
     url: string,
@@ -76,6 +80,10 @@ export class ReadSocket {
           if (a) this.counts.socket++;
           else this.counts.http++;
           resolve(a);
+        },
+        fail: (e) => {
+          signal.removeEventListener('abort', onAbort);
+          reject(e);
         },
       });
       signal.addEventListener('abort', onAbort);
@@ -113,13 +121,13 @@ export class ReadSocket {
     };
   }
 
-  /** The socket is gone: every read still waiting is read over HTTP. */
+  /** The socket is gone: every read still waiting fails as a fetch whose connection broke. */
   private dropped(): void {
     this.ws = null;
     this.open = false;
     const waiting = [...this.pending.values()];
     this.pending.clear();
-    for (const p of waiting) p.settle(null);
+    for (const p of waiting) p.fail(new Error('the read socket closed'));
   }
 
   private failed(): void {
