@@ -507,7 +507,9 @@ export function createContext(opts: GatewayOptions): GatewayContext {
     if (sim) return sim;
     const fam = opts.families[m.kind];
     if (!fam) return null;
-    sim = new FaultySimulator(fam.createSimulator({ id: m.id, name: m.name }));
+    sim = new FaultySimulator(
+      fam.createSimulator({ id: m.id, name: m.name, ...(m.api ? { machineApi: m.api } : {}) }),
+    );
     sims.set(m.id, sim);
     return sim;
   }

@@ -696,7 +696,7 @@ function hooksOf(ctx: GatewayContext, m: MachineEntry): HeldSessionHooks | undef
 function sessionOf(ctx: GatewayContext, m: MachineEntry, hooks: HeldSessionHooks): HeldSession {
   let s = ctx.heldSessions.get(m.id);
   if (!s) {
-    s = new HeldSession(ctx, m, hooks);
+    s = new HeldSession(ctx, m, hooks.forMachine ? hooks.forMachine({ api: m.api }) : hooks);
     ctx.heldSessions.set(m.id, s);
   }
   return s;

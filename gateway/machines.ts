@@ -2,7 +2,14 @@ import { existsSync, readFileSync } from 'node:fs';
 import path from 'node:path';
 import { z } from 'zod';
 import type { GatewaySecrets } from '../src/fleet/contract';
-import { MACHINE_ID, MACHINE_KINDS, type MachineInfo, type MachineKind } from '../src/fleet/types';
+import {
+  MACHINE_APIS,
+  MACHINE_ID,
+  MACHINE_KINDS,
+  type MachineApi,
+  type MachineInfo,
+  type MachineKind,
+} from '../src/fleet/types';
 import { patternsOfForms, redactText, secretTextForms } from './redact';
 
 /**
@@ -31,6 +38,8 @@ export interface MachineEntry {
   tlsFingerprint?: string;
   /** Where the machine stands (a bay, a room): the fleet page groups by it. */
   group?: string;
+  /** Duet only: force the API (`dsf` or `standalone`); absent, the gateway probes (DWC's order). */
+  api?: MachineApi;
 }
 
 export interface MachinesConfig {
@@ -49,10 +58,11 @@ export class MachinesFileError extends Error {
   }
 }
 
-export const DEMO_FLEET: ReadonlyArray<{ id: string; name: string; kind: MachineKind }> = [
+export const DEMO_FLEET: ReadonlyArray<{ id: string; name: string; kind: MachineKind; api?: MachineApi }> = [
   { id: 'demo-xtool', name: 'Laser bay — xTool D1 Pro', kind: 'xtool' },
   { id: 'demo-touchcut', name: 'Plasma table — TouchCut', kind: 'touchcut' },
   { id: 'demo-duet', name: 'Printer bay — Duet 3', kind: 'duet' },
+  { id: 'demo-duet-standalone', name: 'Printer bay — Duet 2 (standalone)', kind: 'duet', api: 'standalone' },
   { id: 'demo-prunt', name: 'Printer bay — Prunt', kind: 'prunt' },
   { id: 'demo-g2core', name: 'CNC router — g2core', kind: 'g2core' },
 ];
@@ -74,6 +84,7 @@ const entrySchema = z.strictObject({
   password: z.string({ error: 'must be a string' }).min(1, 'must not be empty').optional(),
   simulated: z.boolean({ error: 'must be true or false' }).optional(),
   tlsFingerprint: z.string({ error: 'must be a string' }).optional(),
+  api: z.enum(MACHINE_APIS, { error: `must be one of ${MACHINE_APIS.join(', ')}` }).optional(),
   group: z
     .string({ error: 'must be a string' })
     .trim()
@@ -201,6 +212,8 @@ export function parseMachines(file: string, data: unknown, env: NodeJS.ProcessEn
         tlsFingerprint = fp;
       }
     }
+    if (e.api !== undefined && e.kind !== 'duet')
+      problems.push(`${where}: field "api": only for "kind": "duet" (dsf or standalone)`);
     const secrets: GatewaySecrets = {};
     for (const field of ['apiKey', 'password'] as const) {
       const v = resolveSecret(e[field], env);
@@ -219,6 +232,7 @@ export function parseMachines(file: string, data: unknown, env: NodeJS.ProcessEn
       secrets,
       ...(tlsFingerprint ? { tlsFingerprint } : {}),
       ...(e.group !== undefined ? { group: e.group } : {}),
+      ...(e.api !== undefined ? { api: e.api } : {}),
     });
   });
   if (problems.length) throw new MachinesFileError(file, problems);

@@ -13,6 +13,7 @@ import type {
   AlarmSeverity,
   LinkState,
   MachineInfo,
+  MachineApi,
   MachineKind,
   MachineSnapshot,
   Role,
@@ -352,6 +353,12 @@ export interface HeldSessionHooks {
    * is ended and the next request opens a new one.
    */
   keepAlive?: { path: string; everyMs: number; whileUsedWithinMs: number };
+  /**
+   * The hooks for one machine (its held session keeps them): a family whose controllers speak
+   * more than one API learns which when it opens the session (Duet: DSF or standalone `rr_*`),
+   * or is told by the machines file's `api`. Without it, these hooks serve every machine.
+   */
+  forMachine?(m: { api?: MachineApi }): HeldSessionHooks;
 }
 
 /** Everything a session gets from the console. */
