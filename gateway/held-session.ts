@@ -690,13 +690,13 @@ export class HeldSession {
 }
 
 function hooksOf(ctx: GatewayContext, m: MachineEntry): HeldSessionHooks | undefined {
-  return ctx.opts.families[m.kind]?.gateway?.session;
+  return ctx.hintsOf(m).session;
 }
 
 function sessionOf(ctx: GatewayContext, m: MachineEntry, hooks: HeldSessionHooks): HeldSession {
   let s = ctx.heldSessions.get(m.id);
   if (!s) {
-    s = new HeldSession(ctx, m, hooks.forMachine ? hooks.forMachine({ api: m.api }) : hooks);
+    s = new HeldSession(ctx, m, hooks);
     ctx.heldSessions.set(m.id, s);
   }
   return s;

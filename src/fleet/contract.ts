@@ -78,6 +78,13 @@ export interface GatewayHints {
    * gateway/streams.ts, gateway/watch.ts): one upstream per machine whatever the number of tabs.
    */
   sharing?: SharingHints;
+  /**
+   * The session hooks and sharing hints of ONE machine (the gateway asks once per machine and
+   * keeps them), for a family whose controllers speak more than one API: which one is learned
+   * when the session is opened (Duet: DSF or standalone `rr_*`, the held session's probe) or told
+   * by the machines file's `api`. Without it, `session` and `sharing` serve every machine.
+   */
+  forMachine?(m: { id: string; api?: MachineApi }): { session?: HeldSessionHooks; sharing?: SharingHints };
 }
 
 /**
@@ -353,12 +360,6 @@ export interface HeldSessionHooks {
    * is ended and the next request opens a new one.
    */
   keepAlive?: { path: string; everyMs: number; whileUsedWithinMs: number };
-  /**
-   * The hooks for one machine (its held session keeps them): a family whose controllers speak
-   * more than one API learns which when it opens the session (Duet: DSF or standalone `rr_*`),
-   * or is told by the machines file's `api`. Without it, these hooks serve every machine.
-   */
-  forMachine?(m: { api?: MachineApi }): HeldSessionHooks;
 }
 
 /** Everything a session gets from the console. */

@@ -1,6 +1,8 @@
 import { describe, expect, it } from 'vitest';
 import type { UpstreamAnswer, UpstreamRequest } from '../../fleet/contract';
-import { duetHeldSession, duetHeldSessionFor, rrfTime } from './gateway';
+import { duetDeclaration } from './declaration';
+import { duetHeldSession, duetHeldSessionFor, rrfTime, type DuetApiState } from './gateway';
+import { duetSharing, rrfWatch } from './sharing';
 
 /**
  * The gateway's probe (issue 20): `rr_connect` first, as Duet Web Control does; a standalone board
@@ -33,7 +35,7 @@ const RRF_OK = {
 
 describe('duet held session: standalone or DSF', () => {
   it('a standalone board: rr_connect with sessionKey=yes, the key held, the answer without it', async () => {
-    const hooks = duetHeldSessionFor({});
+    const hooks = duetHeldSessionFor({ api: null });
     const { sent, upstream } = upstreamOf({ '/rr_connect': ans(200, RRF_OK) });
     const r = await hooks.open(upstream, { password: 'p w' });
     expect(r).toMatchObject({ ok: true, key: '3735928559' });
@@ -55,14 +57,14 @@ describe('duet held session: standalone or DSF', () => {
   });
 
   it("err 1 (bad password) is a 403 and err 2 (no free session) a 503, with the board's body", async () => {
-    const bad = await duetHeldSessionFor({}).open(
+    const bad = await duetHeldSessionFor({ api: null }).open(
       upstreamOf({ '/rr_connect': ans(200, { err: 1 }) }).upstream,
       {
         password: 'x',
       },
     );
     expect(bad).toMatchObject({ ok: false, answer: { status: 403, body: '{"err":1}' } });
-    const busy = await duetHeldSessionFor({}).open(
+    const busy = await duetHeldSessionFor({ api: null }).open(
       upstreamOf({ '/rr_connect': ans(200, { err: 2 }) }).upstream,
       undefined,
     );
@@ -70,7 +72,7 @@ describe('duet held session: standalone or DSF', () => {
   });
 
   it('DSF emulating rr_* (isEmulated: true): its emulated session is closed, DSF is used', async () => {
-    const hooks = duetHeldSessionFor({});
+    const hooks = duetHeldSessionFor({ api: null });
     const { sent, upstream } = upstreamOf({
       '/rr_connect': ans(200, { ...RRF_OK, sessionKey: 77, isEmulated: true }),
       '/machine/connect': ans(200, { sessionKey: 'guid-1' }),
@@ -93,7 +95,10 @@ describe('duet held session: standalone or DSF', () => {
 
   it('older DSF (404 on rr_connect) is DSF; "api": "dsf" never probes; "standalone" never falls back', async () => {
     const dsf = upstreamOf({ '/machine/connect': ans(200, { sessionKey: 'g' }) });
-    expect(await duetHeldSessionFor({}).open(dsf.upstream, undefined)).toMatchObject({ ok: true, key: 'g' });
+    expect(await duetHeldSessionFor({ api: null }).open(dsf.upstream, undefined)).toMatchObject({
+      ok: true,
+      key: 'g',
+    });
     const forced = upstreamOf({
       '/rr_connect': ans(200, RRF_OK),
       '/machine/connect': ans(200, { sessionKey: 'g' }),
@@ -121,5 +126,46 @@ describe('duet held session: standalone or DSF', () => {
 
   it('sends the local time without a zone', () => {
     expect(rrfTime(new Date(2026, 10, 28, 9, 5, 7))).toBe('2026-11-28T09:05:07');
+  });
+
+  it("one machine's sharing follows what its session learned: few reads, no sockets, the rr_model watch", async () => {
+    const h = duetDeclaration.gateway?.forMachine?.({ id: 'm1' });
+    if (!h?.session || !h.sharing) throw new Error('no per-machine hints');
+    // Not known yet: DSF's.
+    expect(h.sharing.maxConcurrentReads).toBe(duetSharing.maxConcurrentReads);
+    expect(h.sharing.watch).toBe(duetSharing.watch);
+    await h.session.open(upstreamOf({ '/rr_connect': ans(200, RRF_OK) }).upstream, undefined);
+    expect(h.sharing.maxConcurrentReads).toBe(2);
+    expect(h.sharing.keepAlive).toBe(false);
+    expect(h.sharing.streams).toEqual([]);
+    expect(h.sharing.watch).toBe(rrfWatch);
+    expect(h.sharing.shareRead?.('/rr_model', new URLSearchParams('key=&flags=d99fn'))).toBe(1000);
+    expect(h.sharing.shareRead?.('/rr_gcode', new URLSearchParams('gcode=M25'))).toBeNull();
+    // Forced by the machines file: standalone from the start.
+    const forced = duetDeclaration.gateway?.forMachine?.({ id: 'm2', api: 'standalone' });
+    expect(forced?.sharing?.watch).toBe(rrfWatch);
+    const state: DuetApiState = { api: null };
+    await duetHeldSessionFor(state).open(
+      upstreamOf({ '/machine/connect': ans(200, { sessionKey: 'g' }) }).upstream,
+      undefined,
+    );
+    expect(state.api).toBe('dsf');
+  });
+
+  it('the watch reads a standalone model: state, job, alarms; bad answers are errors', () => {
+    const model = {
+      state: { status: 'processing' },
+      job: { file: { fileName: '0:/gcodes/a.gcode' } },
+      heat: { heaters: [{ state: 'fault' }] },
+    };
+    const r = rrfWatch.poll?.read(
+      200,
+      JSON.stringify({ key: '', flags: 'd99vno', result: { ...model, seqs: {} } }),
+    );
+    expect(r).not.toBeInstanceOf(Error);
+    expect(JSON.stringify(r)).toMatch(/a\.gcode/);
+    expect(rrfWatch.poll?.read(401, '')).toBeInstanceOf(Error);
+    expect(rrfWatch.poll?.read(200, '{"result":[]}')).toBeInstanceOf(Error);
+    expect(rrfWatch.poll?.read(200, 'x')).toBeInstanceOf(Error);
   });
 });

@@ -152,16 +152,22 @@ export const isRrPath = (path: string): boolean => routeOf(path).startsWith('/rr
  * `X-Session-Key`; 401 means it expired (RRF forgets a session after 8 s of silence: the
  * keep-alive `rr_model?key=seqs` every 4 s); `rr_disconnect` ends it.
  */
+/** What one machine's hooks learned: its API (null until the first session is opened). */
+export interface DuetApiState {
+  api: DuetApi | null;
+}
+
 export function duetHeldSessionFor(
-  m: { api?: DuetApi },
+  state: DuetApiState,
   base: HeldSessionHooks = duetHeldSession,
 ): HeldSessionHooks {
-  let api: DuetApi | null = m.api ?? null;
+  const learn = (a: DuetApi) => {
+    state.api = a;
+  };
   const hooks: HeldSessionHooks = {
     ...base,
-    forMachine: undefined,
     async open(upstream, credentials) {
-      if (api !== 'dsf') {
+      if (state.api !== 'dsf') {
         const q = new URLSearchParams({
           password: credentials?.password ?? '',
           time: rrfTime(new Date()),
@@ -170,30 +176,30 @@ export function duetHeldSessionFor(
         const r = await upstream('GET', `/rr_connect?${q.toString()}`);
         const a = readRrConnect(r.status, r.body);
         if (a && !a.isEmulated) {
-          api = 'standalone';
+          learn('standalone');
           if (a.err === 1) return { ok: false, answer: json(403, a.body) };
           if (a.err !== 0) return { ok: false, answer: json(503, a.body) };
           return { ok: true, key: a.key, answer: json(200, a.body) };
         }
         if (a?.isEmulated && a.key !== null)
           await upstream('GET', '/rr_disconnect', { 'X-Session-Key': a.key });
-        if (api === 'standalone') return { ok: false, answer: r };
-        if (a?.isEmulated) api = 'dsf';
+        if (state.api === 'standalone') return { ok: false, answer: r };
+        if (a?.isEmulated) learn('dsf');
       }
       const r = await base.open(upstream, credentials);
-      if (r.ok) api = 'dsf';
+      if (r.ok) learn('dsf');
       return r;
     },
     async close(upstream, key) {
-      if (api === 'standalone') await upstream('GET', '/rr_disconnect', { 'X-Session-Key': key });
+      if (state.api === 'standalone') await upstream('GET', '/rr_disconnect', { 'X-Session-Key': key });
       else await base.close?.(upstream, key);
     },
     isExpired: (status, req) =>
-      api === 'standalone' || (req !== undefined && isRrPath(req.path))
+      state.api === 'standalone' || (req !== undefined && isRrPath(req.path))
         ? status === 401 || status === 403
         : base.isExpired(status, req),
     get keepAlive() {
-      return api === 'standalone'
+      return state.api === 'standalone'
         ? { path: '/rr_model?key=seqs&flags=d99vno', everyMs: 4000, whileUsedWithinMs: 60_000 }
         : base.keepAlive;
     },
@@ -244,9 +250,4 @@ export const duetHeldSession: HeldSessionHooks = {
   isExpired: (status) => status === 403,
 
   keepAlive: { path: '/machine/noop', everyMs: 4000, whileUsedWithinMs: 60_000 },
-
-  /** Per machine (its API), on these hooks (a test may have changed them). */
-  forMachine(m) {
-    return duetHeldSessionFor(m, this);
-  },
 };

@@ -103,6 +103,17 @@ export class RrfClient {
   private seqs: Record<string, number> = {};
   private replySeq: number | null = null;
   private readonly waiters: ReplyWaiter[] = [];
+  /**
+   * Polls and code sends take turns: a poll in flight while a code is sent could fetch the
+   * code's reply before the code waits for it (the reply would then be taken for a message).
+   */
+  private turn: Promise<unknown> = Promise.resolve();
+
+  private inTurn<T>(fn: () => Promise<T>): Promise<T> {
+    const run = this.turn.then(fn, fn);
+    this.turn = run.catch(() => undefined);
+    return run;
+  }
   /** A reply nobody waited for (a message, a macro's echo): the session logs it. */
   onReply: (text: string) => void = () => undefined;
 
@@ -156,7 +167,11 @@ export class RrfClient {
    * One poll: the live parts, the parts whose `seqs` moved, the reply when `seqs.reply` moved.
    * Returns the merged raw model (without `seqs`).
    */
-  async poll(signal?: AbortSignal): Promise<JsonObject> {
+  poll(signal?: AbortSignal): Promise<JsonObject> {
+    return this.inTurn(() => this.pollNow(signal));
+  }
+
+  private async pollNow(signal?: AbortSignal): Promise<JsonObject> {
     const live = await this.modelPart('', 'd99fn', signal);
     if (!isObject(live))
       throw new LinkError('protocol', 'rr_model: the live model is not an object', { path: '(root)' });
@@ -204,24 +219,28 @@ export class RrfClient {
    * REPLY_WAIT_MS. `kick` asks the session for a poll at once.
    */
   async code(code: string, opts: { commandId?: string; async?: boolean }, kick: () => void): Promise<string> {
-    await this.http.json(
-      { path: `/rr_gcode${rrQuery({ gcode: code })}`, commandId: opts.commandId, timeoutMs: 10_000 },
-      gcodeAnswer,
-    );
-    if (opts.async) return '';
-    const reply = new Promise<string>((resolve) => {
-      const w: ReplyWaiter = {
-        resolve,
-        timer: setTimeout(() => {
-          const i = this.waiters.indexOf(w);
-          if (i >= 0) this.waiters.splice(i, 1);
-          resolve('');
-        }, REPLY_WAIT_MS),
-      };
-      this.waiters.push(w);
+    // The turn ends once the code is sent and waits (a poll resolves the wait: not awaited here).
+    const sent = await this.inTurn(async () => {
+      await this.http.json(
+        { path: `/rr_gcode${rrQuery({ gcode: code })}`, commandId: opts.commandId, timeoutMs: 10_000 },
+        gcodeAnswer,
+      );
+      if (opts.async) return { reply: Promise.resolve('') };
+      const reply = new Promise<string>((resolve) => {
+        const w: ReplyWaiter = {
+          resolve,
+          timer: setTimeout(() => {
+            const i = this.waiters.indexOf(w);
+            if (i >= 0) this.waiters.splice(i, 1);
+            resolve('');
+          }, REPLY_WAIT_MS),
+        };
+        this.waiters.push(w);
+      });
+      return { reply };
     });
     kick();
-    return reply;
+    return sent.reply;
   }
 
   fileUrl(path: string): string {
