@@ -92,6 +92,8 @@ test.describe('Duet standalone (rr_*)', () => {
     await expect(dialog).toHaveCount(0);
 
     await page.getByTestId('duet-resume').tap();
+    await expect(page.getByTestId('confirm-dialog')).toContainText('Resume the print?');
+    await page.getByTestId('confirm-yes').tap();
     await expect(page.getByTestId('duet-status')).toHaveText('Printing');
 
     // The console: a code by rr_gcode, its reply by rr_reply.
