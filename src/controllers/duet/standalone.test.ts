@@ -1,5 +1,6 @@
 import { afterEach, describe, expect, it } from 'vitest';
-import { startGateway, tempDir } from '../../../gateway/test-util';
+import path from 'node:path';
+import { consoleFetch, login, startGateway, tempDir, user, writeJson } from '../../../gateway/test-util';
 import type { SessionContext } from '../../fleet/contract';
 import { createContext } from '../../fleet/fleet';
 import { alwaysVisible } from '../../fleet/link';
@@ -201,5 +202,82 @@ describe('a standalone Duet (rr_*) through the gateway', () => {
     session.start();
     await until(() => ctx.snapshot.getState().link === 'needs-login');
     expect(session.store.getState().needsPassword).toBe(true);
+  });
+
+  it('attacks through rr_* are refused by the gateway: the G-code in the query, files, a forged key', async () => {
+    const t = tempDir();
+    cleanups.push(t.cleanup);
+    let sim: RrfSimulator | null = null;
+    const usersFile = path.join(t.dir, 'users.json');
+    writeJson(usersFile, {
+      users: [user('vera', 'viewer', 'pw-vera-1'), user('otto', 'operator', 'pw-otto-1')],
+    });
+    const gw = await startGateway({
+      machines: {
+        file: null,
+        machines: [
+          { id: 'rs', name: 'Duet 2', kind: 'duet', simulated: true, url: null, wsUrl: null, secrets: {} },
+        ],
+      },
+      families: {
+        duet: {
+          ...duetFamily,
+          createSimulator: (o) => (sim = new RrfSimulator({ ...o, password: null, tickMs: 100 })),
+        },
+      },
+      dataDir: t.dir,
+      usersFile,
+      env: {},
+    });
+    cleanups.push(gw.close);
+    const get = (cookie: string, p: string, init: RequestInit = {}) =>
+      consoleFetch(`${gw.url}/machines/rs${p}`, { ...init, headers: { Cookie: cookie, ...init.headers } });
+    const g = (code: string) => `/rr_gcode?gcode=${encodeURIComponent(code)}`;
+    const vera = await login(gw.url, 'vera', 'pw-vera-1');
+    const otto = await login(gw.url, 'otto', 'pw-otto-1');
+    expect((await get(vera, '/rr_model?key=state.status&flags=')).status).toBe(200);
+    for (const p of [
+      g('M25'),
+      '/rr_download?name=0%3A%2Fsys%2Fconfig.g',
+      '/rr_delete?name=0%3A%2Fgcodes%2Fx.g',
+    ])
+      expect((await get(vera, p)).status, p).toBe(403);
+    for (const p of [
+      g('M98 P"evil.g"'),
+      g('M25\nM999'),
+      g('M112 M999 G1 X10'),
+      g('M104 S250'),
+      g('M562 P1'),
+      g('G1 X100'),
+      g('M25M98 P"evil.g"'),
+      '/rr_gcode?gcode=M25&GCODE=M98%20P%22evil.g%22',
+      '/rr_delete?name=0%3A%2Fgcodes%2Fbracket.gcode',
+      '/rr_mkdir?dir=0%3A%2Fsys%2Fx',
+      '/rr_download?name=0%3A%2Fgcodes%2F..%2Fsys%2Fconfig.g',
+    ])
+      expect((await get(otto, p)).status, p).toBe(403);
+    const upload = await get(otto, '/rr_upload?name=0%3A%2Fsys%2Fconfig.g', {
+      method: 'POST',
+      body: 'M551 P"x"',
+    });
+    expect(upload.status).toBe(403);
+    // The operator's job control passes, with the gateway's key, not one the browser made up.
+    const ok = await get(otto, g('M25'), { headers: { 'X-Session-Key': '12345' } });
+    expect(ok.status).toBe(200);
+    expect(await ok.json()).toHaveProperty('buff');
+    if (!sim) throw new Error('no simulator');
+    const rrf: RrfSimulator = sim;
+    expect(rrf.printer.codes).toEqual(['M25']);
+    expect(rrf.printer.fs.exists('0:/sys/config.g')).toBe(true);
+    // The browser's connect is the gateway's: no key in the answer, no second session on the board.
+    const c = (await (await get(vera, '/rr_connect?password=&sessionKey=yes')).json()) as Record<
+      string,
+      unknown
+    >;
+    expect(c).toMatchObject({ err: 0 });
+    expect(c).not.toHaveProperty('sessionKey');
+    // A login from the page replaces the gateway's session: the old one is ended, not left to expire.
+    await until(() => rrf.openSessions === 1, 3000);
+    expect(rrf.requests.filter((r) => r === 'GET /rr_disconnect')).toHaveLength(1);
   });
 });
