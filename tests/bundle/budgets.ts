@@ -9,9 +9,12 @@ import type { Screen } from '../../scripts/bundle-report';
 export const SIZE_BUDGETS_KIB: Array<{ screen: RegExp; kib: number }> = [
   { screen: /^shell$/, kib: 128 },
   { screen: /^family: /, kib: 28 },
-  { screen: /^machine page: /, kib: 160 },
+  // 160 → 161 with issue 20's standalone Duet (the rr_* access rules and the reading of the connect
+  // answer are on the Duet page; the rest of rr_* is a chunk loaded for a standalone board only).
+  { screen: /^machine page: /, kib: 161 },
   // 218 → 222 with issue 17's fleet views (list, sort, filter, groups in the toolbar: +3.7 KiB).
-  { screen: /^fleet page: /, kib: 222 },
+  // 222 → 223 with issue 20's standalone Duet (the same code as on the machine page, above).
+  { screen: /^fleet page: /, kib: 223 },
 ];
 
 /** The screens over their ceiling, in words (empty: all within budget). A screen without a ceiling is one too. */

@@ -7,7 +7,8 @@ import {
   type RawResponse,
   type UploadProgress,
 } from '../../fleet/http';
-import { connectAnswer, connectRefusal, isStandaloneAnswer, RrfClient } from './rrf-client';
+import type { RrfClient } from './rrf-client';
+import { connectAnswer, connectRefusal, isStandaloneAnswer } from './rrf-connect';
 import {
   directoryListing,
   objectModelSchema,
@@ -99,7 +100,9 @@ export class DuetClient {
    * `rr_*`) sends every request through `rrf`.
    */
   api: DuetApi = 'dsf';
-  readonly rrf: RrfClient;
+  /** A reply of a standalone board nobody waited for (a message): the session logs it. */
+  onReply: (text: string) => void = () => undefined;
+  private rrfClient: RrfClient | null = null;
 
   constructor(machineId: string) {
     this.http = new HttpClient({
@@ -108,7 +111,21 @@ export class DuetClient {
       parseError: parseDuetError,
       headers: (): Record<string, string> => (this.sessionKey ? { 'X-Session-Key': this.sessionKey } : {}),
     });
-    this.rrf = new RrfClient(this.http, () => this.sessionKey);
+  }
+
+  /** The standalone API (loaded with the first standalone answer: DSF pages do not carry it). */
+  get rrf(): RrfClient {
+    if (!this.rrfClient) throw new Error('not a standalone Duet (rr_* not loaded)');
+    return this.rrfClient;
+  }
+
+  private async loadRrf(): Promise<RrfClient> {
+    if (!this.rrfClient) {
+      const { RrfClient } = await import('./rrf-client');
+      this.rrfClient ??= new RrfClient(this.http, () => this.sessionKey);
+      this.rrfClient.onReply = (text) => this.onReply(text);
+    }
+    return this.rrfClient;
   }
 
   get standalone(): boolean {
@@ -129,7 +146,7 @@ export class DuetClient {
       r = await this.http.json({ path: '/machine/connect', query: { password }, signal }, connectAnswer);
     } catch (e) {
       if (!(e instanceof LinkError && e.status === 404 && !fromGateway(e))) throw e;
-      this.sessionKey = await this.rrf.connect(password, signal);
+      this.sessionKey = await (await this.loadRrf()).connect(password, signal);
       this.api = 'standalone';
       this.connected = true;
       return this.sessionKey;
@@ -138,7 +155,7 @@ export class DuetClient {
     if (standalone) {
       const refused = connectRefusal(r.err ?? 0);
       if (refused) throw refused;
-      this.rrf.reset();
+      (await this.loadRrf()).reset();
     }
     this.api = standalone ? 'standalone' : 'dsf';
     this.sessionKey = r.sessionKey === undefined || r.sessionKey === null ? null : String(r.sessionKey);

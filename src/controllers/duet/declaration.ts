@@ -1,7 +1,7 @@
 import type { FamilyDeclaration } from '../../fleet/contract';
 import { duetAccess, duetAccessNeedsBody } from './access';
-import { duetHeldSession, duetHeldSessionFor, type DuetApiState } from './gateway';
-import { duetSharing, duetSharingFor } from './sharing';
+import { duetHeldSession } from './gateway';
+import { duetSharing } from './sharing';
 
 /**
  * Node-safe declaration of the Duet (DSF) family: access rules and gateway hints. No React,
@@ -20,17 +20,5 @@ export const duetDeclaration: FamilyDeclaration = {
     session: duetHeldSession,
     /** One upstream per machine for every viewer: shared reads, `WS /machine`, the watch (`sharing.ts`). */
     sharing: duetSharing,
-    /**
-     * Per machine: DSF or standalone (`rr_*`), learned by the held session's probe (or the
-     * machines file's `api`) and then followed by the sharing (limits, watch). Built on `this`,
-     * so a declaration that replaces `session` or `sharing` keeps its replacements.
-     */
-    forMachine(m) {
-      const state: DuetApiState = { api: m.api ?? null };
-      return {
-        session: duetHeldSessionFor(state, this.session),
-        sharing: duetSharingFor(state, this.sharing),
-      };
-    },
   },
 };

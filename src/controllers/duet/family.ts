@@ -1,6 +1,8 @@
 import type { FamilyDescriptor } from '../../fleet/contract';
 import type { SimOptions, Simulator } from '../../fleet/sim';
 import { duetDeclaration } from './declaration';
+import { duetHeldSessionFor, type DuetApiState } from './gateway';
+import { duetSharingFor } from './sharing';
 import { createDuetSimulator } from './sim/simulator';
 import { createRrfSimulator } from './sim/standalone';
 
@@ -11,6 +13,22 @@ import { createRrfSimulator } from './sim/standalone';
  */
 export const duetFamily: FamilyDescriptor = {
   ...duetDeclaration,
+  gateway: {
+    ...duetDeclaration.gateway,
+    /**
+     * Per machine: DSF or standalone (`rr_*`), learned by the held session's probe (or the
+     * machines file's `api`) and then followed by the sharing (limits, watch). Built on `this`,
+     * so a declaration that replaces `session` or `sharing` keeps its replacements. Node only
+     * (the gateway): the page learns the API from the connect answer.
+     */
+    forMachine(m) {
+      const state: DuetApiState = { api: m.api ?? null };
+      return {
+        session: duetHeldSessionFor(state, this.session),
+        sharing: duetSharingFor(state, this.sharing),
+      };
+    },
+  },
   createSimulator: (opts: SimOptions): Simulator =>
     opts.machineApi === 'standalone' ? createRrfSimulator(opts) : createDuetSimulator(opts),
 };

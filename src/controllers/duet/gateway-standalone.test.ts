@@ -1,6 +1,6 @@
 import { describe, expect, it } from 'vitest';
 import type { UpstreamAnswer, UpstreamRequest } from '../../fleet/contract';
-import { duetDeclaration } from './declaration';
+import { duetFamily } from './family';
 import { duetHeldSession, duetHeldSessionFor, rrfTime, type DuetApiState } from './gateway';
 import { duetSharing, rrfWatch } from './sharing';
 
@@ -129,7 +129,7 @@ describe('duet held session: standalone or DSF', () => {
   });
 
   it("one machine's sharing follows what its session learned: few reads, no sockets, the rr_model watch", async () => {
-    const h = duetDeclaration.gateway?.forMachine?.({ id: 'm1' });
+    const h = duetFamily.gateway?.forMachine?.({ id: 'm1' });
     if (!h?.session || !h.sharing) throw new Error('no per-machine hints');
     // Not known yet: DSF's.
     expect(h.sharing.maxConcurrentReads).toBe(duetSharing.maxConcurrentReads);
@@ -142,7 +142,7 @@ describe('duet held session: standalone or DSF', () => {
     expect(h.sharing.shareRead?.('/rr_model', new URLSearchParams('key=&flags=d99fn'))).toBe(1000);
     expect(h.sharing.shareRead?.('/rr_gcode', new URLSearchParams('gcode=M25'))).toBeNull();
     // Forced by the machines file: standalone from the start.
-    const forced = duetDeclaration.gateway?.forMachine?.({ id: 'm2', api: 'standalone' });
+    const forced = duetFamily.gateway?.forMachine?.({ id: 'm2', api: 'standalone' });
     expect(forced?.sharing?.watch).toBe(rrfWatch);
     const state: DuetApiState = { api: null };
     await duetHeldSessionFor(state).open(

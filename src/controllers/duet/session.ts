@@ -213,7 +213,7 @@ export class DuetSession extends KernelSession {
       failed: (e) => this.standalonePollFailed(e),
     });
     this.client.kick = () => this.rrfPoll.kick();
-    this.client.rrf.onReply = (text) => {
+    this.client.onReply = (text) => {
       for (const line of text.trim().split('\n')) {
         const level = line.startsWith('Error:') ? 'error' : line.startsWith('Warning:') ? 'warning' : 'info';
         ctx.log.add(level, 'controller', line);

@@ -6,7 +6,7 @@ import { createContext } from '../../fleet/fleet';
 import { alwaysVisible } from '../../fleet/link';
 import { simulatorHandlers } from '../../fleet/msw';
 import { crc32Hex } from './crc32';
-import { rrQuery } from './rrf-client';
+import { rrQuery } from './rrf-connect';
 import { DuetSession } from './session';
 import { RrfSimulator } from './sim/standalone';
 
