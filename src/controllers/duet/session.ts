@@ -407,11 +407,14 @@ export class DuetSession extends KernelSession {
 
   /** No polled model for POLL_SILENT_MS while it is the source: the link is down. */
   private pollSilent(quietMs: number): void {
-    if (!this.polling() || this.tracker.state !== 'online') return;
+    const standalone = this.client.standalone && this.client.connected;
+    if (!(this.polling() || standalone) || this.tracker.state !== 'online') return;
     this.tracker.fail(
       new LinkError(
         'timeout',
-        `No answer from the Duet for ${Math.round(quietMs / 1000)} s (GET /machine/model; the live socket is down)`,
+        `No answer from the Duet for ${Math.round(quietMs / 1000)} s (${
+          standalone ? 'GET /rr_model' : 'GET /machine/model; the live socket is down'
+        })`,
       ),
     );
   }
@@ -496,6 +499,8 @@ export class DuetSession extends KernelSession {
 
   private onStandaloneModel(raw: JsonObject): void {
     if (!this.client.standalone) return;
+    // A silent board (a poll that does not come back) is the link down within 5 s (issue 15).
+    this.pollLiveness.heard();
     this.ingest.polled(raw);
   }
 

@@ -47,6 +47,14 @@ afterEach(() => {
   sim.dispose();
 });
 
+async function until(pred: () => boolean, ms = 10_000): Promise<void> {
+  const end = Date.now() + ms;
+  while (!pred()) {
+    if (Date.now() > end) throw new Error('condition not met in time');
+    await new Promise((r) => setTimeout(r, 20));
+  }
+}
+
 describe('standalone client (in-page simulator)', () => {
   it('connects by rr_connect with sessionKey=yes and sends the key on every request', async () => {
     expect(session.client.api).toBe('standalone');
@@ -100,6 +108,23 @@ describe('standalone client (in-page simulator)', () => {
       true,
     );
   });
+
+  it('a board that stops answering is the link down within 5 s, and back when it answers', async () => {
+    session.start();
+    await until(() => ctx.snapshot.getState().link === 'online' && session.store.getState().model !== null);
+    let hold = true;
+    const inner = sim.fetch.bind(sim);
+    sim.fetch = async (req, path) => {
+      while (hold) await new Promise((r) => setTimeout(r, 50));
+      return inner(req, path);
+    };
+    const t0 = Date.now();
+    await until(() => /No answer from the Duet/.test(ctx.snapshot.getState().problem?.message ?? ''), 8000);
+    expect(Date.now() - t0).toBeLessThan(6000);
+    expect(ctx.snapshot.getState().problem?.message).toMatch(/rr_model/);
+    hold = false;
+    await until(() => ctx.snapshot.getState().link === 'online', 15_000);
+  }, 30_000);
 
   it('encodes query values with %20, never +', () => {
     expect(rrQuery({ gcode: 'M32 "0:/gcodes/a+b.gcode"', x: undefined })).toBe(
