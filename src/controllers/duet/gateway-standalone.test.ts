@@ -141,6 +141,8 @@ describe('duet held session: standalone or DSF', () => {
     expect(h.sharing.watch).toBe(rrfWatch);
     expect(h.sharing.shareRead?.('/rr_model', new URLSearchParams('key=&flags=d99fn'))).toBe(1000);
     expect(h.sharing.shareRead?.('/rr_gcode', new URLSearchParams('gcode=M25'))).toBeNull();
+    // A reply is handed out once per session: never kept for another read.
+    expect(h.sharing.shareRead?.('/rr_reply', new URLSearchParams())).toBeNull();
     // Forced by the machines file: standalone from the start.
     const forced = duetFamily.gateway?.forMachine?.({ id: 'm2', api: 'standalone' });
     expect(forced?.sharing?.watch).toBe(rrfWatch);

@@ -271,7 +271,11 @@ export const duetSharing: SharingHints = {
 
 /** The watch's read of a standalone board: the whole model, every part (`rr_model`, verbose). */
 export const RRF_WATCH_PATH = '/rr_model?key=&flags=d99vno';
-/** Identical `rr_model`/`rr_reply` reads of several viewers within this window: one upstream. */
+/**
+ * Identical `rr_model` reads of several viewers within this window: one upstream. Not `rr_reply`:
+ * RRF hands each reply out once per session, so a kept answer would repeat one reply and lose the
+ * next one arriving within the window.
+ */
 export const RRF_SHARE_MS = 1000;
 
 /**
@@ -297,10 +301,10 @@ export const rrfWatch: WatchDecl = {
   },
 };
 
-/** Reads of a standalone board several viewers may share: the model polls and the reply. */
+/** Reads of a standalone board several viewers may share: the model polls. */
 export function rrfShareRead(path: string, query: URLSearchParams): number | null {
   const r = routeOf(path);
-  if (r !== '/rr_model' && r !== '/rr_reply') return null;
+  if (r !== '/rr_model') return null;
   if (duetAccess({ method: 'GET', path, query }).command) return null;
   return RRF_SHARE_MS;
 }
