@@ -6,7 +6,7 @@ import https from 'node:https';
 import { isIP } from 'node:net';
 import { WebSocket } from 'ws';
 import { defaultDecision, type AccessDecision, type AccessRequest } from '../src/fleet/access';
-import type { FamilyDescriptor } from '../src/fleet/contract';
+import type { FamilyDescriptor, HeldSessionHooks, SharingHints } from '../src/fleet/contract';
 import { FaultySimulator } from '../src/fleet/sim';
 import { roleAtLeast, type MachineKind, type Role } from '../src/fleet/types';
 import { AuditLog, type AuditEntry, type AuditLogOptions } from './audit';
@@ -175,6 +175,11 @@ export interface GatewayContext {
   authorize(w: Who, m: MachineEntry, d: AccessDecision): Verdict;
   simulatorFor(m: MachineEntry): FaultySimulator | null;
   /**
+   * The family's held-session hooks and sharing hints for this machine: the family's own, or
+   * those of `gateway.forMachine` (made once per machine and kept: Duet learns DSF or standalone).
+   */
+  hintsOf(m: MachineEntry): MachineHints;
+  /**
    * Throws a simulated machine's simulator away (its sockets closed, the session the gateway held
    * with it ended): the next request starts a fresh world without faults.
    */
@@ -183,6 +188,11 @@ export interface GatewayContext {
   readonly builtInDemo: boolean;
   /** Runs the simulator's "demo" control (a job in progress), when it has one. */
   startDemoJob(m: MachineEntry): void;
+}
+
+export interface MachineHints {
+  session?: HeldSessionHooks;
+  sharing?: SharingHints;
 }
 
 export interface LiveSocket {
@@ -232,13 +242,25 @@ export function createContext(opts: GatewayOptions): GatewayContext {
   const secretsOf = new Map(config.machines.map((m) => [m.id, secretForms(m.secrets)]));
   const allSecrets = [...new Set(config.machines.flatMap((m) => secretForms(m.secrets)))];
   const sims = new Map<string, FaultySimulator>();
+  const hints = new Map<string, MachineHints>();
+  function hintsOf(m: MachineEntry): MachineHints {
+    let h = hints.get(m.id);
+    if (!h) {
+      const g = opts.families[m.kind]?.gateway;
+      h = g?.forMachine
+        ? g.forMachine({ id: m.id, ...(m.api ? { api: m.api } : {}) })
+        : { session: g?.session, sharing: g?.sharing };
+      hints.set(m.id, h);
+    }
+    return h;
+  }
   const openSockets = new Set<WebSocket>();
   const pending = new Set<http.ClientRequest>();
   const httpAgent = new http.Agent({ keepAlive: false });
   // Controllers (TouchCut) use self-signed certificates: accepted on this agent only.
   const httpsAgent = new https.Agent({ keepAlive: false, rejectUnauthorized: false });
   const upstream = new UpstreamHttp({
-    sharingOf: (m) => opts.families[m.kind]?.gateway?.sharing,
+    sharingOf: (m) => hintsOf(m).sharing,
     timeoutMs,
     now,
     httpAgent,
@@ -548,7 +570,9 @@ export function createContext(opts: GatewayOptions): GatewayContext {
     }
     const fam = opts.families[m.kind];
     if (!fam) return null;
-    sim = new FaultySimulator(fam.createSimulator({ id: m.id, name: m.name }));
+    sim = new FaultySimulator(
+      fam.createSimulator({ id: m.id, name: m.name, ...(m.api ? { machineApi: m.api } : {}) }),
+    );
     sims.set(m.id, sim);
     return sim;
   }
@@ -652,6 +676,7 @@ export function createContext(opts: GatewayOptions): GatewayContext {
     classify,
     authorize,
     simulatorFor,
+    hintsOf,
     resetSimulator,
     builtInDemo,
     startDemoJob,

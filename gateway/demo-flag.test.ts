@@ -20,7 +20,7 @@ describe('GET /api/machines demo flag', () => {
   it('is true for the built-in demo fleet, so the console starts demo jobs', async () => {
     const body = await machinesAnswer(null, demoFleet());
     expect(body).toMatchObject({ demo: true });
-    expect((body as { machines: unknown[] }).machines).toHaveLength(5);
+    expect((body as { machines: unknown[] }).machines).toHaveLength(6);
   });
 
   it('is false for a machines file, even one with only simulated machines', async () => {

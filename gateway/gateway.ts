@@ -110,7 +110,7 @@ export function createGateway(opts: GatewayOptions): Gateway {
   const watches: MachineWatch[] = [];
   if (opts.watch !== false) {
     for (const m of config.machines) {
-      const decl = opts.families[m.kind]?.gateway?.sharing?.watch;
+      const decl = ctx.hintsOf(m).sharing?.watch;
       if (!decl) continue;
       const w = new MachineWatch(m.id, decl, {
         read: (pathAndQuery) => watchRead(m, pathAndQuery),

@@ -179,6 +179,9 @@ function duet(id: string, d: Dsf | null, extra: Partial<MachineEntry> = {}): Mac
     id,
     name: id,
     kind: 'duet',
+    // The DSF session mechanics; the probe of a machine without `api` (rr_connect first) is
+    // src/controllers/duet/gateway-standalone.test.ts and gateway-standalone.test.ts there.
+    api: 'dsf',
     simulated: d === null,
     url: d ? new URL(d.url) : null,
     wsUrl: null,

@@ -500,7 +500,11 @@ export class HeldSession {
       this.typed = typed;
       this.ctx.learnSecret(this.m.id, typed.password);
     }
+    // The session it replaces is ended on the controller, not left to expire: a standalone Duet
+    // has 8 sessions, and a browser repeating its login must not use them up.
+    const replaced = this.open ? this.key : null;
     this.install(r.key, r.answer);
+    if (replaced !== null && replaced !== r.key) void this.closeKey(replaced);
     return { ok: true, key: r.key };
   }
 
@@ -691,7 +695,7 @@ export class HeldSession {
 }
 
 function hooksOf(ctx: GatewayContext, m: MachineEntry): HeldSessionHooks | undefined {
-  return ctx.opts.families[m.kind]?.gateway?.session;
+  return ctx.hintsOf(m).session;
 }
 
 function sessionOf(ctx: GatewayContext, m: MachineEntry, hooks: HeldSessionHooks): HeldSession {

@@ -87,6 +87,7 @@ describe('machines file', () => {
       'demo-xtool',
       'demo-touchcut',
       'demo-duet',
+      'demo-duet-standalone',
       'demo-prunt',
       'demo-g2core',
     ]);
@@ -153,6 +154,29 @@ describe('machines file', () => {
     writeJson(f, {});
     expect(() => loadMachines({ machinesFile: f, env: {}, cwd: d })).toThrow(
       /broken\.json[\s\S]*field "machines": missing/,
+    );
+  });
+});
+
+describe('api (duet: dsf or standalone)', () => {
+  it('is optional, only dsf or standalone, only for a duet, and not sent to the browser', () => {
+    const d = dir();
+    const duet = { id: 'p1', name: 'P1', kind: 'duet', url: 'http://10.0.0.9' };
+    const file = writeJson(path.join(d, 'm.json'), {
+      machines: [
+        { ...duet, api: 'standalone' },
+        { ...duet, id: 'p2', api: 'dsf' },
+        { ...duet, id: 'p3' },
+      ],
+    });
+    const [a, b, c] = loadMachines({ machinesFile: file, env: {}, cwd: d }).machines;
+    expect([a?.api, b?.api, c && 'api' in c]).toEqual(['standalone', 'dsf', false]);
+    expect(a && 'api' in machineInfo(a)).toBe(false);
+    expect(problemsOf([{ ...duet, api: 'rrf' }]).message).toMatch(
+      /machines\[0\] \(id "p1"\): field "api": must be one of dsf, standalone/,
+    );
+    expect(problemsOf([{ ...good, api: 'standalone' }]).message).toMatch(
+      /machines\[0\] \(id "laser-1"\): field "api": only for "kind": "duet"/,
     );
   });
 });

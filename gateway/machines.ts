@@ -2,7 +2,14 @@ import { existsSync, readFileSync } from 'node:fs';
 import path from 'node:path';
 import { z } from 'zod';
 import type { GatewaySecrets } from '../src/fleet/contract';
-import { MACHINE_ID, MACHINE_KINDS, type MachineInfo, type MachineKind } from '../src/fleet/types';
+import {
+  MACHINE_APIS,
+  MACHINE_ID,
+  MACHINE_KINDS,
+  type MachineApi,
+  type MachineInfo,
+  type MachineKind,
+} from '../src/fleet/types';
 import { patternsOfForms, redactText, secretTextForms } from './redact';
 
 /**
@@ -36,6 +43,8 @@ export interface MachineEntry {
    * the g2core REST design from it (gateway/g2core-serial/). `path` is a device or "auto".
    */
   serial?: { path: string; baudRate: number };
+  /** Duet only: force the API (`dsf` or `standalone`); absent, the gateway probes (DWC's order). */
+  api?: MachineApi;
 }
 
 export interface MachinesConfig {
@@ -54,10 +63,11 @@ export class MachinesFileError extends Error {
   }
 }
 
-export const DEMO_FLEET: ReadonlyArray<{ id: string; name: string; kind: MachineKind }> = [
+export const DEMO_FLEET: ReadonlyArray<{ id: string; name: string; kind: MachineKind; api?: MachineApi }> = [
   { id: 'demo-xtool', name: 'Laser bay — xTool D1 Pro', kind: 'xtool' },
   { id: 'demo-touchcut', name: 'Plasma table — TouchCut', kind: 'touchcut' },
   { id: 'demo-duet', name: 'Printer bay — Duet 3', kind: 'duet' },
+  { id: 'demo-duet-standalone', name: 'Printer bay — Duet 2 (standalone)', kind: 'duet', api: 'standalone' },
   { id: 'demo-prunt', name: 'Printer bay — Prunt', kind: 'prunt' },
   { id: 'demo-g2core', name: 'CNC router — g2core', kind: 'g2core' },
 ];
@@ -92,6 +102,7 @@ const entrySchema = z.strictObject({
     .min(300, 'must be at least 300')
     .max(4_000_000, 'must be at most 4000000')
     .optional(),
+  api: z.enum(MACHINE_APIS, { error: `must be one of ${MACHINE_APIS.join(', ')}` }).optional(),
   group: z
     .string({ error: 'must be a string' })
     .trim()
@@ -259,6 +270,8 @@ export function parseMachines(file: string, data: unknown, env: NodeJS.ProcessEn
         tlsFingerprint = fp;
       }
     }
+    if (e.api !== undefined && e.kind !== 'duet')
+      problems.push(`${where}: field "api": only for "kind": "duet" (dsf or standalone)`);
     const secrets: GatewaySecrets = {};
     for (const field of ['apiKey', 'password'] as const) {
       const v = resolveSecret(e[field], env);
@@ -278,6 +291,7 @@ export function parseMachines(file: string, data: unknown, env: NodeJS.ProcessEn
       ...(tlsFingerprint ? { tlsFingerprint } : {}),
       ...(e.group !== undefined ? { group: e.group } : {}),
       ...(serial ? { serial } : {}),
+      ...(e.api !== undefined ? { api: e.api } : {}),
     });
   });
   if (problems.length) throw new MachinesFileError(file, problems);

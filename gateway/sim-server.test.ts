@@ -3,6 +3,7 @@ import { afterEach, describe, expect, it } from 'vitest';
 import { startSimFleet, startSimServer } from './sim-server';
 import { openWs, startGateway, tempDir, testFamily, consoleFetch } from './test-util';
 import { parseMachines } from './machines';
+import { duetFamily } from '../src/controllers/duet/family';
 
 const cleanups: Array<() => Promise<void> | void> = [];
 afterEach(async () => {
@@ -124,5 +125,45 @@ describe('simulator server', () => {
     await b.close();
     await expect.poll(() => s.stats().wsOpen).toBe(0);
     expect(s.stats()).toMatchObject({ wsOpened: 0, wsMaxOpen: 1 });
+  });
+
+  it('npm run sim serves a standalone Duet (rr_*) beside the DSF one; the gateway finds out by probing', async () => {
+    const fleet = await startSimFleet({ duet: duetFamily });
+    cleanups.push(fleet.close);
+    expect(fleet.machinesFile.machines.map((m) => m.id)).toEqual(['sim-duet', 'sim-duet-standalone']);
+    const [dsf, rrf] = fleet.machinesFile.machines;
+    // A real HTTP server speaking rr_* only.
+    const c = (await (await consoleFetch(`${rrf?.url}/rr_connect?password=&sessionKey=yes`)).json()) as {
+      err: number;
+      sessionKey: number;
+    };
+    expect(c).toMatchObject({ err: 0, apiLevel: 2 });
+    expect((await consoleFetch(`${rrf?.url}/rr_model?key=seqs`)).status).toBe(401);
+    expect((await consoleFetch(`${rrf?.url}/machine/connect`)).status).toBe(404);
+    expect((await consoleFetch(`${dsf?.url}/rr_connect?sessionKey=yes`)).status).toBe(404);
+    const machines = parseMachines('sim', JSON.parse(JSON.stringify(fleet.machinesFile)) as unknown, {});
+    const t = tempDir();
+    cleanups.push(t.cleanup);
+    const gw = await startGateway({
+      machines: { file: null, machines },
+      families: { duet: duetFamily },
+      dataDir: t.dir,
+      env: {},
+    });
+    cleanups.push(gw.close);
+    const viaGw = (id: string, p: string) => consoleFetch(`${gw.url}/machines/${id}${p}`);
+    const a = (await (await viaGw('sim-duet-standalone', '/machine/connect')).json()) as Record<
+      string,
+      unknown
+    >;
+    expect(a).toMatchObject({ err: 0 });
+    expect(a).not.toHaveProperty('sessionKey');
+    const m = (await (
+      await viaGw('sim-duet-standalone', '/rr_model?key=state.status&flags=')
+    ).json()) as unknown;
+    expect(m).toMatchObject({ result: 'idle' });
+    const d = (await (await viaGw('sim-duet', '/machine/connect')).json()) as Record<string, unknown>;
+    expect(d).not.toHaveProperty('err');
+    expect((await viaGw('sim-duet', '/machine/model')).status).toBe(200);
   });
 });

@@ -4,7 +4,7 @@ import type { Duplex } from 'node:stream';
 import { WebSocket, WebSocketServer, type RawData } from 'ws';
 import type { FamilyDescriptor } from '../src/fleet/contract';
 import { FaultySimulator, SimDropped, type Faults, type Simulator } from '../src/fleet/sim';
-import type { MachineKind } from '../src/fleet/types';
+import type { MachineApi, MachineKind } from '../src/fleet/types';
 import { readBody, sendJson } from './http-util';
 
 /**
@@ -27,6 +27,8 @@ export interface SimServerOptions {
   /** Port of the separate WebSocket server for families with `defaultWsPort` (0: any). */
   wsPort?: number;
   tickMs?: number;
+  /** The API it simulates, where the family has more than one (Duet: `standalone`). */
+  machineApi?: MachineApi;
   /** Wrap the simulator before serving it (tests). */
   simulator?: Simulator;
 }
@@ -128,7 +130,13 @@ function listen(server: http.Server, host: string, port: number): Promise<number
 export async function startSimServer(o: SimServerOptions): Promise<SimServer> {
   const host = o.host ?? '127.0.0.1';
   const sim = new FaultySimulator(
-    o.simulator ?? o.family.createSimulator({ id: o.id, name: o.name, tickMs: o.tickMs }),
+    o.simulator ??
+      o.family.createSimulator({
+        id: o.id,
+        name: o.name,
+        tickMs: o.tickMs,
+        ...(o.machineApi ? { machineApi: o.machineApi } : {}),
+      }),
   );
   const sockets = new Set<WebSocket>();
   const counts = { requests: 0, connections: 0, wsOpened: 0, wsMaxOpen: 0 };
@@ -263,7 +271,26 @@ export interface SimFleet {
   close(): Promise<void>;
 }
 
-/** One simulated machine per registered family (`npm run sim`). */
+/**
+ * Further simulated machines of a family that speaks another API: a Duet WITHOUT an SBC
+ * (standalone RepRapFirmware, `rr_*`). Its machines-file entry has no `api`: the gateway finds out
+ * by probing, as it would for a real board.
+ */
+export const SIM_VARIANTS: ReadonlyArray<{
+  kind: MachineKind;
+  id: string;
+  label: string;
+  machineApi: MachineApi;
+}> = [
+  {
+    kind: 'duet',
+    id: 'sim-duet-standalone',
+    label: 'Duet (standalone RepRapFirmware, rr_*)',
+    machineApi: 'standalone',
+  },
+];
+
+/** One simulated machine per registered family, and its SIM_VARIANTS (`npm run sim`). */
 export async function startSimFleet(
   families: Partial<Record<MachineKind, FamilyDescriptor>>,
   opts: { host?: string; basePort?: number; tickMs?: number } = {},
@@ -271,20 +298,28 @@ export async function startSimFleet(
   const servers: SimServer[] = [];
   let next = opts.basePort ?? 0;
   try {
+    const list: Array<{ fam: FamilyDescriptor; id: string; name: string; machineApi?: MachineApi }> = [];
     for (const fam of Object.values(families)) {
       if (!fam) continue;
+      list.push({ fam, id: `sim-${fam.kind}`, name: `Simulated ${fam.label}` });
+      for (const v of SIM_VARIANTS)
+        if (v.kind === fam.kind)
+          list.push({ fam, id: v.id, name: `Simulated ${v.label}`, machineApi: v.machineApi });
+    }
+    for (const { fam, id, name, machineApi } of list) {
       const port = next;
       const wsPort = next ? next + 1 : 0;
       if (next) next += 2;
       servers.push(
         await startSimServer({
           family: fam,
-          id: `sim-${fam.kind}`,
-          name: `Simulated ${fam.label}`,
+          id,
+          name,
           host: opts.host,
           port,
           wsPort,
           tickMs: opts.tickMs,
+          ...(machineApi ? { machineApi } : {}),
         }),
       );
     }

@@ -9,7 +9,8 @@ import { ptyUnavailable, startPtyBoard, type PtyBoard } from '../gateway/g2core-
  *
  * Starts every registered family's simulator as a real HTTP + WebSocket server on localhost
  * (one port per machine, a second one for the socket where the family has its own WebSocket
- * port) and prints a machines file pointing at them. Run the console against them with
+ * port), plus the variants of `SIM_VARIANTS` (a standalone Duet speaking `rr_*`, whose entry has
+ * no `api`: the console probes it), and prints a machines file pointing at them. Run the console against them with
  * `SHOPDECK_MACHINES=machines.sim.json npm start`.
  *
  * It also offers a serial g2core (issue 19): a SIMULATED board on a pseudo-terminal pair, whose

@@ -54,7 +54,15 @@ describe('npm run dev', () => {
     const machines = await fetch(`${base}/api/machines`, { headers: { 'X-Shopdeck': '1' } });
     expect(machines.status).toBe(200);
     const body = (await machines.json()) as { machines: { id: string; kind: string }[] };
-    expect(body.machines.map((m) => m.kind).sort()).toEqual(['duet', 'g2core', 'prunt', 'touchcut', 'xtool']);
+    // Every family, and the Duet twice: with DSF and standalone (rr_*).
+    expect(body.machines.map((m) => m.kind).sort()).toEqual([
+      'duet',
+      'duet',
+      'g2core',
+      'prunt',
+      'touchcut',
+      'xtool',
+    ]);
 
     // The simulators start their demo jobs after start-up, loading their data then: a dev server
     // whose module loader has closed dies here.

@@ -254,7 +254,7 @@ describe('the server on plain HTTP (child process)', () => {
     expect(start).toMatchObject({
       level: 'info',
       urls: [`http://127.0.0.1:${s.port}/`],
-      machines: { file: null, demo: true, count: 5 },
+      machines: { file: null, demo: true, count: 6 },
       users: { mode: 'open' },
       https: null,
     });
@@ -331,7 +331,7 @@ describe('the server on plain HTTP (child process)', () => {
     const h = JSON.parse(ok.body.toString()) as Record<string, unknown>;
     expect(h).toMatchObject({
       ok: true,
-      machines: { loaded: true, file: null, demo: true, count: 5 },
+      machines: { loaded: true, file: null, demo: true, count: 6 },
       users: { mode: 'open', file: path.join(s.dataDir, 'users.json') },
       https: false,
       stopping: false,
@@ -407,7 +407,7 @@ describe('HTTPS', () => {
     const printed = /certificate SHA-256 ((?:[0-9A-F]{2}:){31}[0-9A-F]{2})/.exec(text)?.[1];
     expect(printed, text).toBeDefined();
     expect(text).toMatch(/users: +1 from .*users\.json/);
-    expect(text).toMatch(/machines: 5 from the built-in demo fleet/);
+    expect(text).toMatch(/machines: 6 from the built-in demo fleet/);
 
     // The kept files: a CA that a tablet trusts, and the server certificate it signed.
     const caPem = readFileSync(path.join(dataDir, 'tls', 'shopdeck-ca.crt'), 'utf8');

@@ -13,6 +13,7 @@ import type {
   AlarmSeverity,
   LinkState,
   MachineInfo,
+  MachineApi,
   MachineKind,
   MachineSnapshot,
   Role,
@@ -77,6 +78,13 @@ export interface GatewayHints {
    * gateway/streams.ts, gateway/watch.ts): one upstream per machine whatever the number of tabs.
    */
   sharing?: SharingHints;
+  /**
+   * The session hooks and sharing hints of ONE machine (the gateway asks once per machine and
+   * keeps them), for a family whose controllers speak more than one API: which one is learned
+   * when the session is opened (Duet: DSF or standalone `rr_*`, the held session's probe) or told
+   * by the machines file's `api`. Without it, `session` and `sharing` serve every machine.
+   */
+  forMachine?(m: { id: string; api?: MachineApi }): { session?: HeldSessionHooks; sharing?: SharingHints };
 }
 
 /**

@@ -1,4 +1,4 @@
-import type { MachineKind } from './types';
+import type { MachineApi, MachineKind } from './types';
 
 /**
  * The simulator contract. One implementation per family feeds the gateway (simulated machines,
@@ -46,6 +46,8 @@ export interface Simulator {
 export interface SimOptions {
   id: string;
   name: string;
+  /** The machines file's `api`, where a family simulates more than one (Duet: `standalone`). */
+  machineApi?: MachineApi;
   /** Injectable clock for tests (defaults to Date.now). */
   now?: () => number;
   /** Time steps: the simulator advances its world every `tickMs` (default per family). */

@@ -6,6 +6,14 @@
 export const MACHINE_KINDS = ['touchcut', 'g2core', 'duet', 'xtool', 'prunt'] as const;
 export type MachineKind = (typeof MACHINE_KINDS)[number];
 
+/**
+ * Which API a machine speaks, where its family has more than one (the machines file's optional
+ * `api`, Duet only): DSF (`/machine/*`, a Duet with an SBC) or standalone RepRapFirmware (`rr_*`).
+ * Absent: learned when the gateway opens the session.
+ */
+export const MACHINE_APIS = ['dsf', 'standalone'] as const;
+export type MachineApi = (typeof MACHINE_APIS)[number];
+
 /** What the browser learns about a machine from `GET /api/machines`: nothing secret. */
 export interface MachineInfo {
   id: string;

@@ -7,14 +7,17 @@ import type { Screen } from '../../scripts/bundle-report';
  * the measurements by `npm run bench -- bundle` (not met yet: see the README, Performance).
  */
 export const SIZE_BUDGETS_KIB: Array<{ screen: RegExp; kib: number }> = [
-  // 128 → 130, machine pages 160 → 162, fleet page 222 → 224 with the page's read socket
+  // 128 → 130, machine pages and the fleet page +2 with the page's read socket
   // (src/fleet/read-socket.ts, +1 KiB; it halves the fleet page's main-thread cost) and zod set up
   // in a module of its own (src/zod-jitless.ts: one more chunk boundary).
   { screen: /^shell$/, kib: 130 },
   { screen: /^family: /, kib: 28 },
-  { screen: /^machine page: /, kib: 162 },
+  // 160 → 161 with issue 20's standalone Duet (the rr_* access rules and the reading of the connect
+  // answer are on the Duet page; the rest of rr_* is a chunk loaded for a standalone board only).
+  { screen: /^machine page: /, kib: 163 },
   // 218 → 222 with issue 17's fleet views (list, sort, filter, groups in the toolbar: +3.7 KiB).
-  { screen: /^fleet page: /, kib: 224 },
+  // 222 → 223 with issue 20's standalone Duet (the same code as on the machine page, above).
+  { screen: /^fleet page: /, kib: 225 },
 ];
 
 /** The screens over their ceiling, in words (empty: all within budget). A screen without a ceiling is one too. */

@@ -102,8 +102,12 @@ describe('duet access policy', () => {
   });
 
   it('finding 1: other ways to the same file or to commands are supervisor (rr_ API, plugins, sockets)', () => {
+    // A supervisor read (as `GET /machine/file/0:/sys/config.g`), not an audited command.
+    expect(duetAccess(viaGateway('GET', '/rr_download?name=0%3A%2Fsys%2Fconfig.g'))).toMatchObject({
+      role: 'supervisor',
+      command: false,
+    });
     for (const p of [
-      '/rr_download?name=0%3A%2Fsys%2Fconfig.g',
       '/rr_gcode?gcode=M98%20P%22evil.g%22',
       '/rr_delete?name=0%3A%2Fsys%2Fconfig.g',
       '/rr_move?old=a&new=b',
@@ -305,5 +309,86 @@ describe('finding 2: G-code classification', () => {
       'R:expression:{"x"}',
     ]);
     expect(tokenizeGcode('M25 (x)')).toMatchObject({ ok: false });
+  });
+
+  describe('standalone rr_* requests (issue 20)', () => {
+    const decide = (method: string, raw: string) => duetAccess(viaGateway(method, raw));
+    const g = (code: string) => `/rr_gcode?gcode=${encodeURIComponent(code)}`;
+
+    it('reads are viewer reads: model, reply, listings, job files, the height map', () => {
+      for (const p of [
+        '/rr_model?key=&flags=d99fn',
+        '/rr_model?key=seqs&flags=d99vno',
+        '/rr_reply',
+        '/rr_filelist?dir=0%3A%2Fgcodes&first=0',
+        '/rr_download?name=0%3A%2Fgcodes%2Fa.gcode',
+        '/rr_download?name=0%3A%2Fsys%2Fheightmap.csv',
+        '/rr_fileinfo?name=0%3A%2Fgcodes%2Fa.gcode',
+        '/rr_fileinfo',
+        '/rr_thumbnail?name=0%3A%2Fgcodes%2Fa.gcode&offset=100',
+        '/RR_MODEL?key=state',
+      ])
+        expect(decide('GET', p), p).toMatchObject({ role: 'viewer', command: false });
+    });
+
+    it('classifies rr_gcode by the G-code in its query, exactly as POST /machine/code', () => {
+      for (const code of ['M25', 'M24', 'M0', 'M112\nM999', 'M292 P0 S3', 'M32 "0:/gcodes/a.gcode"']) {
+        expect(decide('GET', g(code)), code).toMatchObject({ role: 'operator', command: true });
+        expect(decide('GET', g(code)).role).toBe(classifyCode(code).role);
+      }
+      for (const code of [
+        'M999',
+        'M112 M999 G1 X10',
+        'G1 X10',
+        'M104 S250',
+        'M562 P1',
+        'M98 P"evil.g"',
+        'M32 "0:/sys/config.g"',
+        'M25\nG28',
+        '',
+      ])
+        expect(decide('GET', g(code)), code).toMatchObject({ role: 'supervisor', command: true });
+      // Given twice, RRF and the gateway could read different ones: not classified.
+      // (The gateway refuses a repeated name outright; the policy refuses it too.)
+      expect(splitTarget('/rr_gcode?gcode=M25&gcode=G28')).toHaveProperty('error');
+      const twice = new URLSearchParams([
+        ['gcode', 'M25'],
+        ['gcode', 'G28'],
+      ]);
+      expect(duetAccess({ method: 'GET', path: '/rr_gcode', query: twice }).role).toBe('supervisor');
+      expect(decide('GET', '/rr_gcode?gcode=M25&GCODE=G28').role).toBe('supervisor');
+      // Without the query the G-code is missing: no operator work.
+      expect(decide('GET', '/rr_gcode').role).toBe('supervisor');
+    });
+
+    it('uploads are operator work only into 0:/gcodes/; file changes are supervisor commands', () => {
+      expect(decide('POST', '/rr_upload?name=0%3A%2Fgcodes%2Fa.gcode&crc32=01020304')).toMatchObject({
+        role: 'operator',
+        command: true,
+      });
+      for (const p of [
+        '/rr_upload?name=0%3A%2Fsys%2Fconfig.g',
+        '/rr_upload?name=0%3A%2Fgcodes%2F..%2Fsys%2Fconfig.g',
+        '/rr_upload?name=0%3A%2Fgcodes%2Fa.g&NAME=0%3A%2Fsys%2Fconfig.g',
+        '/rr_upload',
+      ])
+        expect(decide('POST', p), p).toMatchObject({ role: 'supervisor', command: true });
+      for (const p of [
+        '/rr_delete?name=0%3A%2Fgcodes%2Fa.g',
+        '/rr_move?old=a&new=b',
+        '/rr_mkdir?dir=0%3A%2Fgcodes%2Fx',
+      ])
+        expect(decide('GET', p), p).toMatchObject({ role: 'supervisor', command: true });
+      for (const p of [
+        '/rr_download?name=0%3A%2Fsys%2Fconfig.g',
+        '/rr_download?name=0%3A%2Fgcodes%2F..%2Fsys%2Fconfig.g',
+        '/rr_download?name=0%3A%2Fgcodes%2Fa.g&Name=0%3A%2Fsys%2Fconfig.g',
+        '/rr_fileinfo?name=0%3A%2Fmacros%2Fx.g',
+      ])
+        expect(decide('GET', p).role, p).toBe('supervisor');
+      // Unknown rr_ requests, and other methods, are supervisor.
+      expect(decide('GET', '/rr_status?type=3').role).toBe('supervisor');
+      expect(decide('PUT', '/rr_gcode?gcode=M25').role).toBe('supervisor');
+    });
   });
 });

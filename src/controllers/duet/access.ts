@@ -187,11 +187,92 @@ function unknown(req: AccessRequest): AccessDecision {
   );
 }
 
+// ------------------------------------------------------------------------------------ rr_*
+
+/**
+ * A query parameter of an `rr_*` request, or null when it is absent or AMBIGUOUS: named more than
+ * once (in any letter case), as RepRapFirmware and the gateway could then read different ones.
+ */
+function rrParam(query: URLSearchParams, name: string): string | null | 'ambiguous' {
+  const values: string[] = [];
+  for (const [k, v] of query) if (k.toLowerCase() === name) values.push(v);
+  if (values.length > 1) return 'ambiguous';
+  return values[0] ?? null;
+}
+
+/** Reading a file by `name`: job files (and the height map for downloads) are open to viewers. */
+function rrFileRead(query: URLSearchParams, what: string, open: (file: string) => boolean): AccessDecision {
+  const file = rrParam(query, 'name');
+  if (file === 'ambiguous') return supervisor(`${what} (the file is named more than once)`);
+  if (file === null) return read(`${what} of the job being printed`);
+  const label = `${what} ${file}`;
+  return open(file) ? read(label) : { role: 'supervisor', command: false, label };
+}
+
+/**
+ * The standalone RepRapFirmware API (`rr_*`, all GET but `POST rr_upload`): the same rules as
+ * the DSF requests they stand for. `rr_gcode?gcode=` carries its G-code in the query and is
+ * classified exactly as the body of `POST /machine/code` (`classifyCode`); `rr_upload?name=` as
+ * an upload, `rr_download`/`rr_fileinfo`/`rr_thumbnail?name=` as file reads; delete, move and new
+ * folder are supervisor commands. A parameter given twice is not classified (supervisor).
+ */
+function rrAccess(req: AccessRequest, name: string): AccessDecision {
+  const method = req.method.toUpperCase();
+  const q = req.query;
+  if (method === 'POST' && name === 'rr_upload') {
+    const file = rrParam(q, 'name');
+    if (file === null || file === 'ambiguous') return supervisor('upload a file (no single name)');
+    return isJobFile(file)
+      ? operator(`upload job file ${normaliseDuetPath(file)}`)
+      : supervisor(`upload ${file}`);
+  }
+  if (method !== 'GET' && method !== 'HEAD') return unknown(req);
+  switch (name) {
+    case 'rr_connect':
+      return read('connect');
+    case 'rr_disconnect':
+      return read('disconnect');
+    case 'rr_model':
+      return read('read the object model');
+    case 'rr_reply':
+      return read('read the G-code reply');
+    case 'rr_upload':
+      return read('read the last upload result');
+    case 'rr_filelist':
+    case 'rr_files': {
+      const dir = rrParam(q, 'dir');
+      return dir === 'ambiguous'
+        ? supervisor('list a folder named more than once')
+        : read(`list ${dir ?? ''}`);
+    }
+    case 'rr_download':
+      return rrFileRead(q, 'read', openToViewers);
+    case 'rr_fileinfo':
+      return rrFileRead(q, 'read file info of', isJobFile);
+    case 'rr_thumbnail':
+      return rrFileRead(q, 'read a thumbnail of', isJobFile);
+    case 'rr_gcode': {
+      const gcode = rrParam(q, 'gcode');
+      if (gcode === 'ambiguous') return supervisor('send G-code given more than once');
+      return classifyCode(gcode ?? '');
+    }
+    case 'rr_delete':
+      return supervisor(`delete ${String(rrParam(q, 'name') ?? '')}`);
+    case 'rr_move':
+      return supervisor('move or rename a file');
+    case 'rr_mkdir':
+      return supervisor(`create folder ${String(rrParam(q, 'dir') ?? '')}`);
+    default:
+      return unknown(req);
+  }
+}
+
 export const duetAccess: AccessPolicy = (req) => {
   const r = route(req.path);
   if (!r) return supervisor(`${req.method} ${req.path} (not valid percent-encoding)`);
   const [top, a, b] = r.segs;
   const n = r.segs.length;
+  if (!req.websocket && n === 1 && top?.startsWith('rr_')) return rrAccess(req, top);
   if (req.websocket) {
     return top === 'machine' && n === 1 ? read('live object model') : unknown(req);
   }

@@ -7,8 +7,9 @@ import {
   type RawResponse,
   type UploadProgress,
 } from '../../fleet/http';
+import type { RrfClient } from './rrf-client';
+import { connectAnswer, connectRefusal, isStandaloneAnswer } from './rrf-connect';
 import {
-  connectResponse,
   directoryListing,
   objectModelSchema,
   parsedFileInfoSchema,
@@ -50,6 +51,9 @@ export function parseDuetError(status: number, body: unknown, text: string): Lin
       },
     );
   }
+  // The gateway's answer for a standalone board with no free session (`rr_connect` err 2).
+  if (status === 503 && typeof body === 'object' && body !== null && (body as { err?: unknown }).err === 2)
+    return connectRefusal(2);
   if (status === 502)
     return new LinkError('vendor', 'Incompatible DCS version (502)', {
       status,
@@ -83,12 +87,22 @@ export interface CodeOptions {
   timeoutMs?: number;
 }
 
+export type DuetApi = 'dsf' | 'standalone';
+
 export class DuetClient {
   readonly http: HttpClient;
   /** Only when no gateway holds the session (msw); null through the gateway. */
   sessionKey: string | null = null;
   /** `connect` succeeded and no 401/403 said the session is gone since. */
   connected = false;
+  /**
+   * Which API the Duet speaks, learned by `connect`: 'standalone' (RepRapFirmware without an SBC,
+   * `rr_*`) sends every request through `rrf`.
+   */
+  api: DuetApi = 'dsf';
+  /** A reply of a standalone board nobody waited for (a message): the session logs it. */
+  onReply: (text: string) => void = () => undefined;
+  private rrfClient: RrfClient | null = null;
 
   constructor(machineId: string) {
     this.http = new HttpClient({
@@ -99,19 +113,63 @@ export class DuetClient {
     });
   }
 
+  /** The standalone API (loaded with the first standalone answer: DSF pages do not carry it). */
+  get rrf(): RrfClient {
+    if (!this.rrfClient) throw new Error('not a standalone Duet (rr_* not loaded)');
+    return this.rrfClient;
+  }
+
+  private async loadRrf(): Promise<RrfClient> {
+    if (!this.rrfClient) {
+      const { RrfClient } = await import('./rrf-client');
+      this.rrfClient ??= new RrfClient(this.http, () => this.sessionKey);
+      this.rrfClient.onReply = (text) => this.onReply(text);
+    }
+    return this.rrfClient;
+  }
+
+  get standalone(): boolean {
+    return this.api === 'standalone';
+  }
+
   /**
    * `GET /machine/connect?password=` — the gateway answers it from its own session (a configured
-   * password wins; a typed one is checked with DSF and kept by the gateway), without a key.
+   * password wins; a typed one is checked with the Duet and kept by the gateway), without a key.
+   * The gateway probed the board (`gateway.ts`): a standalone board's answer is `rr_connect`'s,
+   * with a numeric `err`, which DSF's never has. Where no gateway answers (msw) and DSF's connect
+   * is not there (404), `rr_connect` is asked directly.
    */
   async connect(password?: string, signal?: AbortSignal): Promise<string | null> {
     this.connected = false;
-    const r = await this.http.json(
-      { path: '/machine/connect', query: { password }, signal },
-      connectResponse,
-    );
-    this.sessionKey = r.sessionKey;
+    let r: z.infer<typeof connectAnswer>;
+    try {
+      r = await this.http.json({ path: '/machine/connect', query: { password }, signal }, connectAnswer);
+    } catch (e) {
+      if (!(e instanceof LinkError && e.status === 404 && !fromGateway(e))) throw e;
+      this.sessionKey = await (await this.loadRrf()).connect(password, signal);
+      this.api = 'standalone';
+      this.connected = true;
+      return this.sessionKey;
+    }
+    const standalone = isStandaloneAnswer(r);
+    if (standalone) {
+      const refused = connectRefusal(r.err ?? 0);
+      if (refused) throw refused;
+      (await this.loadRrf()).reset();
+    }
+    this.api = standalone ? 'standalone' : 'dsf';
+    this.sessionKey = r.sessionKey === undefined || r.sessionKey === null ? null : String(r.sessionKey);
     this.connected = true;
-    return r.sessionKey;
+    return this.sessionKey;
+  }
+
+  /** A poll asked for at once (a code waits for its reply, fetched by the next poll). */
+  kick: () => void = () => undefined;
+
+  /** Plugins are DSF's (an SBC): a standalone board has none. */
+  private noPlugins(): void {
+    if (this.standalone)
+      throw new LinkError('vendor', 'Plugins need DSF (a Duet with an SBC): this board runs standalone');
   }
 
   /** The session is known to be gone (401/403): the next `connect` gets a new one. */
@@ -121,12 +179,14 @@ export class DuetClient {
   }
 
   async noop(signal?: AbortSignal): Promise<void> {
+    if (this.standalone) return this.rrf.noop(signal);
     await this.http.raw({ path: '/machine/noop', timeoutMs: 5000, signal });
   }
 
   async disconnect(): Promise<void> {
     try {
-      await this.http.raw({ path: '/machine/disconnect', timeoutMs: 3000 });
+      if (this.standalone) await this.rrf.disconnect();
+      else await this.http.raw({ path: '/machine/disconnect', timeoutMs: 3000 });
     } finally {
       this.forget();
     }
@@ -153,6 +213,7 @@ export class DuetClient {
 
   /** `POST /machine/code` — plain-text body; the reply is plain text ("" when there is none). */
   async code(code: string, opts: CodeOptions = {}): Promise<string> {
+    if (this.standalone) return this.rrf.code(code, opts, this.kick);
     const r = await this.http.raw({
       method: 'POST',
       path: '/machine/code',
@@ -167,17 +228,20 @@ export class DuetClient {
   }
 
   async download(path: string, signal?: AbortSignal): Promise<Blob> {
+    if (this.standalone) return this.rrf.download(path, signal);
     const r = await this.http.blob({ path: `/machine/file/${encodePath(path)}`, timeoutMs: 60_000, signal });
     return r.blob;
   }
 
   /** Download as text (height map, macros); non-2xx throws. */
   async readText(path: string, signal?: AbortSignal): Promise<string> {
+    if (this.standalone) return this.rrf.readText(path, signal);
     const r = await this.http.raw({ path: `/machine/file/${encodePath(path)}`, timeoutMs: 30_000, signal });
     return r.text;
   }
 
   fileUrl(path: string): string {
+    if (this.standalone) return this.rrf.fileUrl(path);
     return this.http.url(`/machine/file/${encodePath(path)}`);
   }
 
@@ -192,6 +256,7 @@ export class DuetClient {
       commandId?: string;
     } = {},
   ): Promise<RawResponse> {
+    if (this.standalone) return this.rrf.upload(path, body, opts);
     const headers: Record<string, string> = { 'Content-Type': 'application/octet-stream' };
     if (this.sessionKey) headers['X-Session-Key'] = this.sessionKey;
     if (opts.commandId) headers['X-Shopdeck-Command'] = opts.commandId;
@@ -210,6 +275,7 @@ export class DuetClient {
 
   /** `GET /machine/fileinfo/{path}?readThumbnailContent=true` */
   fileInfo(path: string, thumbnails = true, signal?: AbortSignal): Promise<ParsedFileInfo> {
+    if (this.standalone) return this.rrf.fileInfo(path, thumbnails, signal);
     return this.http.json(
       {
         path: `/machine/fileinfo/${encodePath(path)}`,
@@ -221,6 +287,7 @@ export class DuetClient {
   }
 
   async deleteFile(path: string, opts: { recursive?: boolean; commandId?: string } = {}): Promise<void> {
+    if (this.standalone) return this.rrf.deleteFile(path, opts);
     await this.http.raw({
       method: 'DELETE',
       path: `/machine/file/${encodePath(path)}`,
@@ -231,6 +298,7 @@ export class DuetClient {
 
   /** `POST /machine/file/move` as a form. 409: the target exists — ask, then resend with force. */
   async move(from: string, to: string, opts: { force?: boolean; commandId?: string } = {}): Promise<void> {
+    if (this.standalone) return this.rrf.move(from, to, opts);
     const form = new URLSearchParams({ from, to });
     if (opts.force) form.set('force', 'true');
     await this.http.raw({
@@ -243,14 +311,17 @@ export class DuetClient {
   }
 
   listDirectory(dir: string, signal?: AbortSignal): Promise<DirEntry[]> {
+    if (this.standalone) return this.rrf.listDirectory(dir, signal);
     return this.http.json({ path: `/machine/directory/${encodePath(dir)}`, signal }, directoryListing);
   }
 
   async makeDirectory(dir: string, commandId?: string): Promise<void> {
+    if (this.standalone) return this.rrf.makeDirectory(dir, commandId);
     await this.http.raw({ method: 'PUT', path: `/machine/directory/${encodePath(dir)}`, commandId });
   }
 
   async installPlugin(zip: Blob | ArrayBuffer, commandId?: string): Promise<void> {
+    this.noPlugins();
     await this.http.raw({
       method: 'PUT',
       path: '/machine/plugin',
@@ -262,6 +333,7 @@ export class DuetClient {
   }
 
   async uninstallPlugin(name: string, commandId?: string): Promise<void> {
+    this.noPlugins();
     await this.http.raw({
       method: 'DELETE',
       path: '/machine/plugin',
@@ -272,6 +344,7 @@ export class DuetClient {
   }
 
   async startPlugin(name: string, commandId?: string): Promise<void> {
+    this.noPlugins();
     await this.http.raw({
       method: 'POST',
       path: '/machine/startPlugin',
@@ -282,6 +355,7 @@ export class DuetClient {
   }
 
   async stopPlugin(name: string, commandId?: string): Promise<void> {
+    this.noPlugins();
     await this.http.raw({
       method: 'POST',
       path: '/machine/stopPlugin',

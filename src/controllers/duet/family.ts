@@ -1,12 +1,34 @@
 import type { FamilyDescriptor } from '../../fleet/contract';
+import type { SimOptions, Simulator } from '../../fleet/sim';
 import { duetDeclaration } from './declaration';
+import { duetHeldSessionFor, type DuetApiState } from './gateway';
+import { duetSharingFor } from './sharing';
 import { createDuetSimulator } from './sim/simulator';
+import { createRrfSimulator } from './sim/standalone';
 
 /**
- * The Duet (DSF) family as Node sees it: its declaration and the simulator. The gateway and
- * `npm run sim` import it; the browser imports `declaration.ts` only (no simulator in the page).
+ * The Duet family as Node sees it: its declaration and the simulator (DSF, or standalone
+ * RepRapFirmware for a machine whose `api` is `standalone`). The gateway and `npm run sim` import
+ * it; the browser imports `declaration.ts` only (no simulator in the page).
  */
 export const duetFamily: FamilyDescriptor = {
   ...duetDeclaration,
-  createSimulator: createDuetSimulator,
+  gateway: {
+    ...duetDeclaration.gateway,
+    /**
+     * Per machine: DSF or standalone (`rr_*`), learned by the held session's probe (or the
+     * machines file's `api`) and then followed by the sharing (limits, watch). Built on `this`,
+     * so a declaration that replaces `session` or `sharing` keeps its replacements. Node only
+     * (the gateway): the page learns the API from the connect answer.
+     */
+    forMachine(m) {
+      const state: DuetApiState = { api: m.api ?? null };
+      return {
+        session: duetHeldSessionFor(state, this.session),
+        sharing: duetSharingFor(state, this.sharing),
+      };
+    },
+  },
+  createSimulator: (opts: SimOptions): Simulator =>
+    opts.machineApi === 'standalone' ? createRrfSimulator(opts) : createDuetSimulator(opts),
 };

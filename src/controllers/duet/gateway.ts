@@ -80,16 +80,143 @@ export function sessionKeyOf(body: string): string | null {
   return null;
 }
 
+/** Which API a Duet speaks: DSF (`/machine/*`, an SBC) or standalone RepRapFirmware (`rr_*`). */
+export type DuetApi = 'dsf' | 'standalone';
+
+/** `GET /machine/*` or `GET /rr_*`: both sessions' connect and disconnect are the gateway's. */
+function connectRoute(r: string): 'connect' | 'disconnect' | null {
+  if (r === '/machine/connect' || r === '/rr_connect') return 'connect';
+  if (r === '/machine/disconnect' || r === '/rr_disconnect') return 'disconnect';
+  return null;
+}
+
+/** RRF's `time=`: the local time, ISO without a zone (`HttpResponder.cpp` sets the clock from it). */
+export function rrfTime(d: Date): string {
+  const p = (n: number) => String(n).padStart(2, '0');
+  return `${d.getFullYear()}-${p(d.getMonth() + 1)}-${p(d.getDate())}T${p(d.getHours())}:${p(d.getMinutes())}:${p(d.getSeconds())}`;
+}
+
+/** An `rr_connect` answer: `{err, sessionTimeout, boardType, apiLevel, sessionKey, isEmulated}`. */
+export interface RrConnectAnswer {
+  err: number;
+  isEmulated: boolean;
+  key: string | null;
+  /** The answer without `sessionKey`, for browsers. */
+  body: string;
+}
+
+export function readRrConnect(status: number, body: string): RrConnectAnswer | null {
+  if (status !== 200) return null;
+  let parsed: unknown;
+  try {
+    parsed = JSON.parse(body);
+  } catch {
+    return null;
+  }
+  if (typeof parsed !== 'object' || parsed === null || Array.isArray(parsed)) return null;
+  const o = parsed as Record<string, unknown>;
+  const err = o['err'];
+  if (typeof err !== 'number') return null;
+  return {
+    err,
+    isEmulated: o['isEmulated'] === true,
+    key: sessionKeyOf(body),
+    body: withoutSessionKey(body),
+  };
+}
+
+const json = (status: number, body: string): UpstreamAnswer => ({
+  status,
+  headers: { 'content-type': 'application/json' },
+  body,
+});
+
+/** A request of the standalone API (`/rr_model`, `/rr_gcode`, …). */
+export const isRrPath = (path: string): boolean => routeOf(path).startsWith('/rr_');
+
+/**
+ * The session hooks of ONE Duet (`forMachine`): which API it speaks is learned when the session
+ * is opened (or forced by the machines file's `"api"`), and then decides the keep-alive, the
+ * disconnect and how an expired key shows.
+ *
+ * The probe follows Duet Web Control (`connector/index.ts`): `rr_connect` first; an answer with
+ * `err` and without `isEmulated` is a standalone board; `isEmulated: true` (DSF ≥ 3.5 emulating
+ * `rr_*`: its emulated session is closed at once), no JSON, or a 404 means DSF, and
+ * `/machine/connect` follows. Once learned, the API stays for the gateway's life (a board does not
+ * grow an SBC while it runs).
+ *
+ * Standalone: `rr_connect?password=&time=&sessionKey=yes`; `err` 1 (bad password) is answered to
+ * the browser as 403 and `err` 2 (no free session: RRF has 8) as 503, both with RRF's body, so the
+ * page reads them as DSF's refusals; `err` 0 is answered with the connect answer minus
+ * `sessionKey` (its numeric `err` is how the page knows the board is standalone). The key goes in
+ * `X-Session-Key`; 401 means it expired (RRF forgets a session after 8 s of silence: the
+ * keep-alive `rr_model?key=seqs` every 4 s); `rr_disconnect` ends it.
+ */
+/** What one machine's hooks learned: its API (null until the first session is opened). */
+export interface DuetApiState {
+  api: DuetApi | null;
+}
+
+export function duetHeldSessionFor(
+  state: DuetApiState,
+  base: HeldSessionHooks = duetHeldSession,
+): HeldSessionHooks {
+  const learn = (a: DuetApi) => {
+    state.api = a;
+  };
+  const hooks: HeldSessionHooks = {
+    ...base,
+    async open(upstream, credentials) {
+      if (state.api !== 'dsf') {
+        const q = new URLSearchParams({
+          password: credentials?.password ?? '',
+          time: rrfTime(new Date()),
+          sessionKey: 'yes',
+        });
+        const r = await upstream('GET', `/rr_connect?${q.toString()}`);
+        const a = readRrConnect(r.status, r.body);
+        if (a && !a.isEmulated) {
+          learn('standalone');
+          if (a.err === 1) return { ok: false, answer: json(403, a.body) };
+          if (a.err !== 0) return { ok: false, answer: json(503, a.body) };
+          return { ok: true, key: a.key, answer: json(200, a.body) };
+        }
+        if (a?.isEmulated && a.key !== null)
+          await upstream('GET', '/rr_disconnect', { 'X-Session-Key': a.key });
+        if (state.api === 'standalone') return { ok: false, answer: r };
+        if (a?.isEmulated) learn('dsf');
+      }
+      const r = await base.open(upstream, credentials);
+      if (r.ok) learn('dsf');
+      return r;
+    },
+    async close(upstream, key) {
+      if (state.api === 'standalone') await upstream('GET', '/rr_disconnect', { 'X-Session-Key': key });
+      else await base.close?.(upstream, key);
+    },
+    isExpired: (status, req) =>
+      state.api === 'standalone' || (req !== undefined && isRrPath(req.path))
+        ? status === 401 || status === 403
+        : base.isExpired(status, req),
+    get keepAlive() {
+      return state.api === 'standalone'
+        ? { path: '/rr_model?key=seqs&flags=d99vno', everyMs: 4000, whileUsedWithinMs: 60_000 }
+        : base.keepAlive;
+    },
+  };
+  return hooks;
+}
+
 export const duetHeldSession: HeldSessionHooks = {
   intercept(req) {
     // Every method: no browser request may reach DSF's connect (it would mint a key the gateway
     // does not know) or its disconnect (it would carry the gateway's key and end its session).
-    const r = routeOf(req.path);
-    if (r === '/machine/connect') {
+    const r = connectRoute(routeOf(req.path));
+    if (r === 'connect') {
       const password = paramOf(req.query, 'password');
       return password === null ? { kind: 'open' } : { kind: 'open', credentials: { password } };
     }
-    if (r === '/machine/disconnect') return { kind: 'close' };
+    if (r === 'disconnect') return { kind: 'close' };
     return null;
   },
 

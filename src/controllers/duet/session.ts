@@ -77,6 +77,13 @@ export const POLL_SILENT_MS = 4500;
  * full model), at most this often: bad data on every frame must not churn sockets.
  */
 export const RESYNC_EVERY_MS = 10_000;
+/**
+ * A standalone board (RepRapFirmware without an SBC, `rr_*`): the model is polled this often
+ * (Duet Web Control polls every 250 ms from each page; through the console server one session
+ * serves every viewer, and a board has few HTTP connections: once a second). It also keeps the
+ * session, which RRF drops after 8 s of silence.
+ */
+export const RRF_POLL_MS = 1000;
 
 export class DuetSession extends KernelSession {
   readonly client: DuetClient;
@@ -93,6 +100,8 @@ export class DuetSession extends KernelSession {
   private readonly modelPoll: Poller;
   /** `GET /machine/noop` while the socket is down (and the model is not polled yet). */
   private readonly noopPoll: Poller;
+  /** A standalone board: `rr_model` (live parts, changed parts, the reply) every RRF_POLL_MS. */
+  private readonly rrfPoll: Poller;
   /** The current socket delivered its full model (later frames are patches). */
   private gotFirst = false;
   /** Since when the socket does not deliver (null: it does, or it was never opened). */
@@ -195,6 +204,21 @@ export class DuetSession extends KernelSession {
       when: () => this.socketDownSince !== null && this.sessionUsable() && !this.pollDue(),
       failed: (e) => this.sideReadFailed(e, NOOP_EVERY_MS),
     });
+    this.rrfPoll = this.poll({
+      name: 'rr_model (standalone)',
+      read: (signal) => this.client.rrf.poll(signal),
+      apply: (raw) => this.onStandaloneModel(raw as JsonObject),
+      intervalMs: () => RRF_POLL_MS,
+      when: () => this.client.standalone && this.sessionUsable(),
+      failed: (e) => this.standalonePollFailed(e),
+    });
+    this.client.kick = () => this.rrfPoll.kick();
+    this.client.onReply = (text) => {
+      for (const line of text.trim().split('\n')) {
+        const level = line.startsWith('Error:') ? 'error' : line.startsWith('Warning:') ? 'warning' : 'info';
+        ctx.log.add(level, 'controller', line);
+      }
+    };
   }
 
   /** The link bookkeeping (the kernel's tracker), under its former name. */
@@ -252,6 +276,12 @@ export class DuetSession extends KernelSession {
       const socket = this.socket.current();
       this.gotFirst = false;
       socket?.close();
+      if (this.client.standalone) {
+        // No socket on a standalone board: its model is polled (rrfPoll), from now on.
+        this.store.setState({ transport: 'standalone', socketProblem: null });
+        this.rrfPoll.kick();
+        return true;
+      }
       socket?.connect();
       return true;
     })().finally(() => {
@@ -377,11 +407,14 @@ export class DuetSession extends KernelSession {
 
   /** No polled model for POLL_SILENT_MS while it is the source: the link is down. */
   private pollSilent(quietMs: number): void {
-    if (!this.polling() || this.tracker.state !== 'online') return;
+    const standalone = this.client.standalone && this.client.connected;
+    if (!(this.polling() || standalone) || this.tracker.state !== 'online') return;
     this.tracker.fail(
       new LinkError(
         'timeout',
-        `No answer from the Duet for ${Math.round(quietMs / 1000)} s (GET /machine/model; the live socket is down)`,
+        `No answer from the Duet for ${Math.round(quietMs / 1000)} s (${
+          standalone ? 'GET /rr_model' : 'GET /machine/model; the live socket is down'
+        })`,
       ),
     );
   }
@@ -462,6 +495,26 @@ export class DuetSession extends KernelSession {
     this.ingest.polled(raw);
   }
 
+  // ------------------------------------------------------------------ standalone (rr_*)
+
+  private onStandaloneModel(raw: JsonObject): void {
+    if (!this.client.standalone) return;
+    // A silent board (a poll that does not come back) is the link down within 5 s (issue 15).
+    this.pollLiveness.heard();
+    this.ingest.polled(raw);
+  }
+
+  /**
+   * A poll of a standalone board failed: a dead session (401/403) is renewed silently once, then
+   * "needs login"; anything else is the link's (or bad data: a protocol error), retried.
+   */
+  private standalonePollFailed(e: unknown): number {
+    if (isAuthError(e)) this.authFailure(e);
+    else if (this.tracker.state !== 'needs-login')
+      this.tracker.fail(e instanceof LinkError && e.kind === 'protocol' ? e : asLinkFault(e));
+    return RRF_POLL_MS;
+  }
+
   // ------------------------------------------------------------------ requests
 
   /** A read: on 401/403 reconnect (once) and try once more. */
@@ -486,6 +539,7 @@ export class DuetSession extends KernelSession {
     try {
       const r = await fn();
       this.modelPoll.kick();
+      this.rrfPoll.kick();
       return r;
     } catch (e) {
       if (isAuthError(e)) {

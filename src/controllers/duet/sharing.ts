@@ -10,7 +10,7 @@ import {
 } from '../../fleet/contract';
 import { duetAccess } from './access';
 import { baseName } from './client';
-import { routeOf } from './gateway';
+import { isRrPath, routeOf, type DuetApiState } from './gateway';
 import {
   applyPatch,
   isObject,
@@ -266,3 +266,71 @@ export const duetSharing: SharingHints = {
   streams: [duetModelStream],
   watch: duetWatch,
 };
+
+// ---------------------------------------------------------------------------------- standalone
+
+/** The watch's read of a standalone board: the whole model, every part (`rr_model`, verbose). */
+export const RRF_WATCH_PATH = '/rr_model?key=&flags=d99vno';
+/**
+ * Identical `rr_model` reads of several viewers within this window: one upstream. Not `rr_reply`:
+ * RRF hands each reply out once per session, so a kept answer would repeat one reply and lose the
+ * next one arriving within the window.
+ */
+export const RRF_SHARE_MS = 1000;
+
+/**
+ * The watch of a standalone board: `rr_model` polled every 10 s (no socket on RepRapFirmware
+ * standalone; the gateway's keep-alive holds the session between polls).
+ */
+export const rrfWatch: WatchDecl = {
+  everyMs: WATCH_EVERY_MS,
+  poll: {
+    path: RRF_WATCH_PATH,
+    read(status, body) {
+      if (status < 200 || status > 299) return new Error(`GET /rr_model answered ${status}`);
+      const obj = parseObject(body, 'an answer');
+      if (obj instanceof Error) return new Error(obj.message.replace('WS /machine', 'GET /rr_model'));
+      if (nestsDeeper(obj, MAX_DEPTH))
+        return new Error(`GET /rr_model: nested deeper than ${MAX_DEPTH} levels`);
+      const result = obj['result'];
+      if (!isObject(result)) return new Error('GET /rr_model: no model in "result"');
+      const { seqs: _seqs, ...model } = result;
+      const r = takeFullModel(model);
+      return r.refused === null ? summaryOfModel(r.model) : new Error(`GET /rr_model: ${r.refused}`);
+    },
+  },
+};
+
+/** Reads of a standalone board several viewers may share: the model polls. */
+export function rrfShareRead(path: string, query: URLSearchParams): number | null {
+  const r = routeOf(path);
+  if (r !== '/rr_model') return null;
+  if (duetAccess({ method: 'GET', path, query }).command) return null;
+  return RRF_SHARE_MS;
+}
+
+/**
+ * The sharing hints of ONE Duet, by the API its held session learned (`state`, DSF until known).
+ * A standalone board has few HTTP connections (RepRapFirmware serves a handful of responders, and
+ * a Duet 2 WiFi fewer): at most two reads at once (the page's poll is one at a time, a file read
+ * beside it), no kept TCP connections (RRF closes them), no sockets, and the `rr_model` watch.
+ */
+export function duetSharingFor(state: DuetApiState, base: SharingHints = duetSharing): SharingHints {
+  const standalone = () => state.api === 'standalone';
+  return {
+    shareRead: (path, query) =>
+      isRrPath(path) ? rrfShareRead(path, query) : (base.shareRead?.(path, query) ?? null),
+    get keepAlive() {
+      return standalone() ? false : base.keepAlive;
+    },
+    get maxConcurrentReads() {
+      return standalone() ? 2 : base.maxConcurrentReads;
+    },
+    get streams() {
+      return standalone() ? [] : base.streams;
+    },
+    get watch() {
+      return standalone() ? rrfWatch : base.watch;
+    },
+  };
+}

@@ -38,7 +38,8 @@ export interface DuetState {
   /** Message box seqs the user closed locally (mode 0 has no button to answer). */
   dismissedBoxes: number[];
   /** Where the model comes from: the socket, or polling while the socket cannot be opened. */
-  transport: 'socket' | 'polling' | null;
+  /** 'standalone': a Duet without an SBC, whose model is always polled (`rr_model`). */
+  transport: 'socket' | 'polling' | 'standalone' | null;
   /** Why the socket is down (shown while polling). */
   socketProblem: string | null;
 }

@@ -104,6 +104,8 @@ export class DuetSimulator implements Simulator {
   readonly requests: string[] = [];
   /** PING frames received, for tests. */
   pings = 0;
+  /** Told every `messages` event (the standalone simulator turns them into `rr_reply` text). */
+  readonly messageListeners: Array<(type: 0 | 1 | 2, content: string) => void> = [];
   private readonly now: () => number;
   private readonly sessionTimeoutMs: number;
   private readonly sessions = new Map<string, Session>();
@@ -167,6 +169,7 @@ export class DuetSimulator implements Simulator {
   message(type: 0 | 1 | 2, content: string): void {
     const m: JsonObject = { content, time: new Date(this.now()).toISOString(), type };
     for (const s of this.sockets) s.pending.push(m);
+    for (const l of this.messageListeners) l(type, content);
     this.flush();
   }
 

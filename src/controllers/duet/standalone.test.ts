@@ -1,0 +1,283 @@
+import { afterEach, describe, expect, it } from 'vitest';
+import path from 'node:path';
+import { consoleFetch, login, startGateway, tempDir, user, writeJson } from '../../../gateway/test-util';
+import type { SessionContext } from '../../fleet/contract';
+import { createContext } from '../../fleet/fleet';
+import { alwaysVisible } from '../../fleet/link';
+import { apiOrigin, setApiOrigin } from '../../fleet/origin';
+import { duetFamily } from './family';
+import { DuetSession } from './session';
+import { FILELIST_PAGE, MAX_SESSIONS, RrfSimulator } from './sim/standalone';
+
+/**
+ * Issue 20: a Duet without an SBC (standalone RepRapFirmware, `rr_*`) through the real gateway.
+ * The machine has no `api` in the machines file: the gateway probes `rr_connect` (as Duet Web
+ * Control does), holds the standalone session, and the page learns the API from the connect
+ * answer; every Duet page then works on the polled model.
+ */
+
+const cleanups: Array<() => Promise<void> | void> = [];
+afterEach(async () => {
+  for (const c of cleanups.splice(0).reverse()) await c();
+});
+
+async function until(pred: () => boolean, ms = 15_000): Promise<void> {
+  const end = Date.now() + ms;
+  while (!pred()) {
+    if (Date.now() > end) throw new Error('condition not met in time');
+    await new Promise((r) => setTimeout(r, 20));
+  }
+}
+
+interface Rig {
+  sim: () => RrfSimulator;
+  session: DuetSession;
+  ctx: SessionContext;
+}
+
+async function rig(simPassword: string | null, configured?: string): Promise<Rig> {
+  const t = tempDir();
+  cleanups.push(t.cleanup);
+  let sim: RrfSimulator | null = null;
+  const gw = await startGateway({
+    machines: {
+      file: null,
+      machines: [
+        {
+          id: 'rsim',
+          name: 'Duet 2 sim',
+          kind: 'duet',
+          simulated: true,
+          url: null,
+          wsUrl: null,
+          secrets: configured ? { password: configured } : {},
+        },
+      ],
+    },
+    families: {
+      duet: {
+        ...duetFamily,
+        createSimulator: (o) => (sim = new RrfSimulator({ ...o, password: simPassword, tickMs: 100 })),
+      },
+    },
+    dataDir: t.dir,
+    env: {},
+  });
+  cleanups.push(gw.close);
+  const origin = apiOrigin();
+  setApiOrigin(gw.url);
+  cleanups.push(() => setApiOrigin(origin));
+  const ctx = createContext(
+    { id: 'rsim', name: 'Duet 2', kind: 'duet', simulated: true },
+    { visibility: alwaysVisible, principal: () => ({ name: 'tester', role: 'supervisor' }) },
+  );
+  const session = new DuetSession(ctx);
+  cleanups.push(() => session.stop());
+  return {
+    sim: () => {
+      if (!sim) throw new Error('the gateway made no simulator');
+      return sim;
+    },
+    session,
+    ctx,
+  };
+}
+
+const status = (s: DuetSession) => s.store.getState().model?.state.status;
+
+describe('a standalone Duet (rr_*) through the gateway', () => {
+  it('is probed and polled: online, the model merged, no key in the page, replies in the log', async () => {
+    const { sim, session, ctx } = await rig('rrf-pass-1', 'rrf-pass-1');
+    session.start();
+    await until(() => ctx.snapshot.getState().link === 'online');
+    expect(session.client.api).toBe('standalone');
+    expect(session.store.getState().transport).toBe('standalone');
+    expect(session.client.sessionKey).toBeNull();
+    const model = session.store.getState().model;
+    expect(model?.state.status).toBe('idle');
+    expect(model?.heat.heaters.length).toBeGreaterThan(0);
+    expect(model?.volumes.length).toBeGreaterThan(0);
+    // Only the rr_* API reached the board; one session (the gateway's) for the page.
+    expect(sim().requests.some((r) => r.includes('/machine/'))).toBe(false);
+    expect(sim().requests).toContain('GET /rr_model');
+    expect(sim().openSessions).toBe(1);
+    // A console code goes by rr_gcode; its reply comes by rr_reply into the console log.
+    const r = await ctx.commands.run(session.cmd.console, { code: 'M115' });
+    expect(sim().printer.codes).toEqual(['M115']);
+    expect(JSON.stringify(r)).toMatch(/FIRMWARE_NAME/);
+    expect(ctx.log.store.getState().entries.some((e) => /FIRMWARE_NAME/.test(e.text))).toBe(true);
+  });
+
+  it('prints, pauses and answers a message box', async () => {
+    const { sim, session, ctx } = await rig(null);
+    session.start();
+    await until(() => ctx.snapshot.getState().link === 'online');
+    await ctx.commands.run(session.cmd.start, { path: '0:/gcodes/bracket.gcode' });
+    await until(() => ['processing', 'busy'].includes(String(status(session))));
+    expect(session.store.getState().model?.job.file?.fileName).toBe('0:/gcodes/bracket.gcode');
+    await ctx.commands.run(session.cmd.pause, undefined);
+    await until(() => status(session) === 'paused');
+    const seq = sim().printer.raiseMessageBox(3);
+    await until(() => session.store.getState().model?.state.messageBox?.seq === seq);
+    const box = session.store.getState().model?.state.messageBox;
+    if (!box) throw new Error('no box');
+    await ctx.commands.run(session.cmd.answer, { box });
+    expect(sim().printer.answers).toEqual([{ seq, cancelled: false, value: null }]);
+    await until(() => session.store.getState().model?.state.messageBox === null);
+    await ctx.commands.run(session.cmd.resume, undefined);
+    await until(() => status(session) === 'processing');
+  }, 30_000);
+
+  it('files: paged listing, file info with a paged thumbnail, move and delete (uploads: standalone-upload.test.ts)', async () => {
+    const { sim, session, ctx } = await rig(null);
+    session.start();
+    await until(() => ctx.snapshot.getState().link === 'online');
+    for (let i = 0; i < FILELIST_PAGE + 2; i++)
+      sim().printer.fs.write(`0:/gcodes/batch/p${i}.gcode`, 'G28\n');
+    const list = await session.loadDir('0:/gcodes/batch');
+    expect(list.map((e) => e.name)).toHaveLength(FILELIST_PAGE + 2);
+    sim().printer.fs.write('0:/gcodes/new part.gcode', 'G28\n');
+    const info = await session.loadFileInfo('0:/gcodes/bracket.gcode');
+    const thumb = info.thumbnails[0];
+    expect(thumb?.data).toBe(
+      (
+        sim().printer.fs.fileInfo('0:/gcodes/bracket.gcode', true)?.['thumbnails'] as Array<{ data: string }>
+      )[0]?.data,
+    );
+    await ctx.commands.run(session.cmd.move, {
+      from: '0:/gcodes/new part.gcode',
+      to: '0:/gcodes/renamed.gcode',
+    });
+    expect(sim().printer.fs.exists('0:/gcodes/renamed.gcode')).toBe(true);
+    await ctx.commands.run(session.cmd.del, { path: '0:/gcodes/renamed.gcode', dir: false });
+    expect(sim().printer.fs.exists('0:/gcodes/renamed.gcode')).toBe(false);
+    // A failed delete ({"err":1}) is a failed command, shown as such.
+    await expect(
+      ctx.commands.run(session.cmd.del, { path: '0:/gcodes/none.gcode', dir: false }),
+    ).rejects.toThrow(/err 1/);
+  });
+
+  it('an expired session (8 s of silence, or the board restarted) is renewed; the page stays online', async () => {
+    const { sim, session, ctx } = await rig('rrf-pass-2', 'rrf-pass-2');
+    session.start();
+    await until(() => ctx.snapshot.getState().link === 'online');
+    sim().expireSessions();
+    await ctx.commands.run(session.cmd.console, { code: 'M115' }).catch(() => undefined);
+    await until(() => sim().openSessions === 1 && ctx.snapshot.getState().link === 'online');
+    await ctx.commands.run(session.cmd.console, { code: 'G28' });
+    expect(sim().printer.codes).toContain('G28');
+  }, 30_000);
+
+  it('a board with no free session (err 2) is shown as such, and joins once one is free', async () => {
+    const { sim, session, ctx } = await rig(null);
+    // Other clients (Duet Web Control tabs) hold every session of the board.
+    const holders: string[] = [];
+    const take = async () => {
+      const r = await sim().fetch(
+        new Request('http://x/rr_connect?sessionKey=yes'),
+        '/rr_connect?sessionKey=yes',
+      );
+      return String(((await r.json()) as { sessionKey: number }).sessionKey);
+    };
+    // The simulator is made by the gateway on first use: a probe request first.
+    session.start();
+    await until(() => ctx.snapshot.getState().link === 'online');
+    session.stop();
+    sim().expireSessions();
+    for (let i = 0; i < MAX_SESSIONS; i++) holders.push(await take());
+    const again = new DuetSession(ctx);
+    cleanups.push(() => again.stop());
+    again.start();
+    await until(() => /no free session/.test(ctx.snapshot.getState().problem?.message ?? ''));
+    expect(ctx.snapshot.getState().link).not.toBe('online');
+    await sim().fetch(
+      new Request('http://x/rr_disconnect', { headers: { 'X-Session-Key': holders[0] ?? '' } }),
+      '/rr_disconnect',
+    );
+    await until(() => ctx.snapshot.getState().link === 'online', 20_000);
+  }, 30_000);
+
+  it('a wrong configured password (err 1) is "needs login"', async () => {
+    const { session, ctx } = await rig('rrf-pass-3', 'not-the-password');
+    session.start();
+    await until(() => ctx.snapshot.getState().link === 'needs-login');
+    expect(session.store.getState().needsPassword).toBe(true);
+  });
+
+  it('attacks through rr_* are refused by the gateway: the G-code in the query, files, a forged key', async () => {
+    const t = tempDir();
+    cleanups.push(t.cleanup);
+    let sim: RrfSimulator | null = null;
+    const usersFile = path.join(t.dir, 'users.json');
+    writeJson(usersFile, {
+      users: [user('vera', 'viewer', 'pw-vera-1'), user('otto', 'operator', 'pw-otto-1')],
+    });
+    const gw = await startGateway({
+      machines: {
+        file: null,
+        machines: [
+          { id: 'rs', name: 'Duet 2', kind: 'duet', simulated: true, url: null, wsUrl: null, secrets: {} },
+        ],
+      },
+      families: {
+        duet: {
+          ...duetFamily,
+          createSimulator: (o) => (sim = new RrfSimulator({ ...o, password: null, tickMs: 100 })),
+        },
+      },
+      dataDir: t.dir,
+      usersFile,
+      env: {},
+    });
+    cleanups.push(gw.close);
+    const get = (cookie: string, p: string, init: RequestInit = {}) =>
+      consoleFetch(`${gw.url}/machines/rs${p}`, { ...init, headers: { Cookie: cookie, ...init.headers } });
+    const g = (code: string) => `/rr_gcode?gcode=${encodeURIComponent(code)}`;
+    const vera = await login(gw.url, 'vera', 'pw-vera-1');
+    const otto = await login(gw.url, 'otto', 'pw-otto-1');
+    expect((await get(vera, '/rr_model?key=state.status&flags=')).status).toBe(200);
+    for (const p of [
+      g('M25'),
+      '/rr_download?name=0%3A%2Fsys%2Fconfig.g',
+      '/rr_delete?name=0%3A%2Fgcodes%2Fx.g',
+    ])
+      expect((await get(vera, p)).status, p).toBe(403);
+    for (const p of [
+      g('M98 P"evil.g"'),
+      g('M25\nM999'),
+      g('M112 M999 G1 X10'),
+      g('M104 S250'),
+      g('M562 P1'),
+      g('G1 X100'),
+      g('M25M98 P"evil.g"'),
+      '/rr_gcode?gcode=M25&GCODE=M98%20P%22evil.g%22',
+      '/rr_delete?name=0%3A%2Fgcodes%2Fbracket.gcode',
+      '/rr_mkdir?dir=0%3A%2Fsys%2Fx',
+      '/rr_download?name=0%3A%2Fgcodes%2F..%2Fsys%2Fconfig.g',
+    ])
+      expect((await get(otto, p)).status, p).toBe(403);
+    const upload = await get(otto, '/rr_upload?name=0%3A%2Fsys%2Fconfig.g', {
+      method: 'POST',
+      body: 'M551 P"x"',
+    });
+    expect(upload.status).toBe(403);
+    // The operator's job control passes, with the gateway's key, not one the browser made up.
+    const ok = await get(otto, g('M25'), { headers: { 'X-Session-Key': '12345' } });
+    expect(ok.status).toBe(200);
+    expect(await ok.json()).toHaveProperty('buff');
+    if (!sim) throw new Error('no simulator');
+    const rrf: RrfSimulator = sim;
+    expect(rrf.printer.codes).toEqual(['M25']);
+    expect(rrf.printer.fs.exists('0:/sys/config.g')).toBe(true);
+    // The browser's connect is the gateway's: no key in the answer, no second session on the board.
+    const c = (await (await get(vera, '/rr_connect?password=&sessionKey=yes')).json()) as Record<
+      string,
+      unknown
+    >;
+    expect(c).toMatchObject({ err: 0 });
+    expect(c).not.toHaveProperty('sessionKey');
+    // A login from the page replaces the gateway's session: the old one is ended, not left to expire.
+    await until(() => rrf.openSessions === 1, 3000);
+    expect(rrf.requests.filter((r) => r === 'GET /rr_disconnect')).toHaveLength(1);
+  });
+});
