@@ -143,6 +143,10 @@ describe('duet held session: standalone or DSF', () => {
     expect(h.sharing.shareRead?.('/rr_gcode', new URLSearchParams('gcode=M25'))).toBeNull();
     // A reply is handed out once per session: never kept for another read.
     expect(h.sharing.shareRead?.('/rr_reply', new URLSearchParams())).toBeNull();
+    // A reply asked for by its number is kept for every page (a new reply has a new number).
+    expect(h.sharing.shareRead?.('/rr_reply', new URLSearchParams('seq=7'))).toBeGreaterThan(0);
+    expect(h.sharing.shareRead?.('/rr_reply', new URLSearchParams('seq=x'))).toBeNull();
+    expect(h.sharing.shareRead?.('/rr_reply', new URLSearchParams('seq=7&a=1'))).toBeNull();
     // Forced by the machines file: standalone from the start.
     const forced = duetFamily.gateway?.forMachine?.({ id: 'm2', api: 'standalone' });
     expect(forced?.sharing?.watch).toBe(rrfWatch);

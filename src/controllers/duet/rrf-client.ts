@@ -166,14 +166,20 @@ export class RrfClient {
     this.seqs = seqs;
     const reply = seqs['reply'];
     if (reply !== undefined) {
-      if (this.replySeq !== null && reply !== this.replySeq) await this.fetchReply(signal);
+      if (this.replySeq !== null && reply !== this.replySeq) await this.fetchReply(reply, signal);
       this.replySeq = reply;
     }
     return model;
   }
 
-  private async fetchReply(signal?: AbortSignal): Promise<void> {
-    const r = await this.http.raw({ path: '/rr_reply', signal });
+  /**
+   * `rr_reply`, asked for by the reply's number (`seq`, which RepRapFirmware ignores): the board
+   * hands each reply out once per session and every page shares the gateway's one session, so the
+   * gateway keeps the answer for that number (sharing.ts `rrfShareRead`) and every page that saw
+   * the number move gets the same text, not only the first one to ask.
+   */
+  private async fetchReply(seq: number, signal?: AbortSignal): Promise<void> {
+    const r = await this.http.raw({ path: `/rr_reply${rrQuery({ seq })}`, signal });
     const waiter = this.waiters.shift();
     if (waiter) {
       clearTimeout(waiter.timer);
