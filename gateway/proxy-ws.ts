@@ -26,7 +26,6 @@ export function createWsProxy(ctx: GatewayContext) {
     byId,
     secretsOf,
     openSockets,
-    hostAllowed,
     record,
     scrub,
     who,
@@ -74,25 +73,12 @@ export function createWsProxy(ctx: GatewayContext) {
     id: string,
     rest: string,
   ): Promise<void> {
-    socket.on('error', () => socket.destroy());
     const address = clientAddress(req);
-    if (state.closed) return rejectUpgrade(socket, 503, { error: 'the gateway is shutting down' });
-    if (!hostAllowed(req)) return rejectUpgrade(socket, 403, { error: 'this host name is not allowed' });
-    const crossSite = crossSiteProblem(req, 'websocket');
-    if (crossSite) {
-      record({
-        type: 'refused',
-        result: 'refused',
-        user: who(req, false).principal?.name ?? 'nobody',
-        source: 'gateway',
-        method: 'WS',
-        machine: byId.has(id) ? id : undefined,
-        path: scrub(rest.slice(0, 300)),
-        address,
-        error: crossSite,
-      });
-      return rejectUpgrade(socket, 403, { error: `refused: ${crossSite}`, crossSite: true });
-    }
+    const refused = refuseUpgrade(ctx, req, socket, {
+      machine: byId.has(id) ? id : undefined,
+      path: scrub(rest.slice(0, 300)),
+    });
+    if (refused) return;
     const m = byId.get(id);
     if (!m) return rejectUpgrade(socket, 404, { error: `no machine "${id}" in the machines file` });
     const t = splitTarget(rest || '/');
@@ -438,4 +424,42 @@ export function createWsProxy(ctx: GatewayContext) {
   }
 
   return { upgradeMachine, holdStream };
+}
+
+/**
+ * What every WebSocket upgrade the gateway takes must pass first (machine sockets, the page's read
+ * socket): a gateway still running, an allowed Host, and an `Origin` of this console (another
+ * site's page can open a WebSocket with the user's cookie; its try is audited as `refused`).
+ * Answers the refusal on the socket and returns true when the upgrade may not go on.
+ */
+export function refuseUpgrade(
+  ctx: GatewayContext,
+  req: IncomingMessage,
+  socket: Duplex,
+  target: { machine?: string; path: string },
+): boolean {
+  socket.on('error', () => socket.destroy());
+  if (ctx.state.closed) {
+    rejectUpgrade(socket, 503, { error: 'the gateway is shutting down' });
+    return true;
+  }
+  if (!ctx.hostAllowed(req)) {
+    rejectUpgrade(socket, 403, { error: 'this host name is not allowed' });
+    return true;
+  }
+  const crossSite = crossSiteProblem(req, 'websocket');
+  if (!crossSite) return false;
+  ctx.record({
+    type: 'refused',
+    result: 'refused',
+    user: ctx.who(req, false).principal?.name ?? 'nobody',
+    source: 'gateway',
+    method: 'WS',
+    machine: target.machine,
+    path: target.path,
+    address: clientAddress(req),
+    error: crossSite,
+  });
+  rejectUpgrade(socket, 403, { error: `refused: ${crossSite}`, crossSite: true });
+  return true;
 }

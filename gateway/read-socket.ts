@@ -3,10 +3,10 @@ import type { Duplex } from 'node:stream';
 import { WebSocketServer, type RawData, type WebSocket } from 'ws';
 import { z } from 'zod';
 import type { GatewayContext } from './context';
-import { crossSiteProblem } from './csrf';
-import { clientAddress, rejectUpgrade } from './http-util';
+import { rejectUpgrade } from './http-util';
 import type { MachineEntry } from './machines';
 import type { SocketReadAnswer } from './proxy-http';
+import { refuseUpgrade } from './proxy-ws';
 
 /**
  * The page's read socket, `WS /api/reads` (issue 16): the polls of every machine a page shows go
@@ -80,7 +80,7 @@ export interface ReadSocketHost {
 }
 
 export function createReadSocket(ctx: GatewayContext, host: ReadSocketHost, limits = READ_SOCKET_LIMITS) {
-  const { state, hostAllowed, who, record, byId, openSockets, scrub } = ctx;
+  const { who, byId, openSockets, scrub } = ctx;
   const sockets = new Set<WebSocket>();
   const wss = new WebSocketServer({
     noServer: true,
@@ -90,23 +90,7 @@ export function createReadSocket(ctx: GatewayContext, host: ReadSocketHost, limi
   });
 
   function upgrade(req: IncomingMessage, socket: Duplex, head: Buffer): void {
-    socket.on('error', () => socket.destroy());
-    if (state.closed) return rejectUpgrade(socket, 503, { error: 'the gateway is shutting down' });
-    if (!hostAllowed(req)) return rejectUpgrade(socket, 403, { error: 'this host name is not allowed' });
-    const crossSite = crossSiteProblem(req, 'websocket');
-    if (crossSite) {
-      record({
-        type: 'refused',
-        result: 'refused',
-        user: who(req, false).principal?.name ?? 'nobody',
-        source: 'gateway',
-        method: 'WS',
-        path: READ_SOCKET_PATH,
-        address: clientAddress(req),
-        error: crossSite,
-      });
-      return rejectUpgrade(socket, 403, { error: `refused: ${crossSite}`, crossSite: true });
-    }
+    if (refuseUpgrade(ctx, req, socket, { path: READ_SOCKET_PATH })) return;
     const w = who(req, false);
     if (!w.principal)
       return rejectUpgrade(socket, 401, {

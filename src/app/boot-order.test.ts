@@ -33,6 +33,20 @@ const sessionsStarted: string[] = [];
 const answer = (body: unknown): Response =>
   new Response(JSON.stringify(body), { status: 200, headers: { 'Content-Type': 'application/json' } });
 
+/** The gateway's answers at boot: an open console and these machines. */
+function stubFleet(machines: Array<{ id: string; name: string; kind: MachineKind }>): void {
+  vi.stubGlobal(
+    'fetch',
+    vi.fn((url: string) =>
+      Promise.resolve(
+        url.startsWith('/api/machines')
+          ? answer({ machines: machines.map((m) => ({ ...m, simulated: true })) })
+          : answer({ mode: 'open', user: null }),
+      ),
+    ),
+  );
+}
+
 afterEach(() => {
   vi.unstubAllGlobals();
   vi.restoreAllMocks();
@@ -50,22 +64,11 @@ describe('boot', () => {
       });
     controllerLoaders.duet = () => (order.push('duet'), Promise.resolve(fakeModule('duet')));
     controllerLoaders.g2core = () => (order.push('g2core'), Promise.resolve(fakeModule('g2core')));
-    vi.stubGlobal(
-      'fetch',
-      vi.fn((url: string) =>
-        Promise.resolve(
-          url.startsWith('/api/machines')
-            ? answer({
-                machines: [
-                  { id: 'printer', name: 'Printer', kind: 'duet', simulated: true },
-                  { id: 'laser', name: 'Laser', kind: 'xtool', simulated: true },
-                  { id: 'mill', name: 'Mill', kind: 'g2core', simulated: true },
-                ],
-              })
-            : answer({ mode: 'open', user: null }),
-        ),
-      ),
-    );
+    stubFleet([
+      { id: 'printer', name: 'Printer', kind: 'duet' },
+      { id: 'laser', name: 'Laser', kind: 'xtool' },
+      { id: 'mill', name: 'Mill', kind: 'g2core' },
+    ]);
     const { boot } = await import('./boot');
     await boot();
     await vi.waitFor(() => expect(order).toEqual(['xtool']));
@@ -87,22 +90,11 @@ describe('boot', () => {
     sessionsStarted.length = 0;
     controllerLoaders.xtool = () => Promise.resolve(fakeModule('xtool'));
     controllerLoaders.duet = () => Promise.resolve(fakeModule('duet'));
-    vi.stubGlobal(
-      'fetch',
-      vi.fn((url: string) =>
-        Promise.resolve(
-          url.startsWith('/api/machines')
-            ? answer({
-                machines: [
-                  { id: 'kiosk-printer', name: 'Printer', kind: 'duet', simulated: true },
-                  { id: 'kiosk-laser', name: 'Laser', kind: 'xtool', simulated: true },
-                  { id: 'kiosk-laser-2', name: 'Laser 2', kind: 'xtool', simulated: true },
-                ],
-              })
-            : answer({ mode: 'open', user: null }),
-        ),
-      ),
-    );
+    stubFleet([
+      { id: 'kiosk-printer', name: 'Printer', kind: 'duet' },
+      { id: 'kiosk-laser', name: 'Laser', kind: 'xtool' },
+      { id: 'kiosk-laser-2', name: 'Laser 2', kind: 'xtool' },
+    ]);
     const { boot } = await import('./boot');
     const { getRuntime } = await import('../fleet/fleet');
     await boot();

@@ -1,3 +1,5 @@
+import { crc32 } from '../../../fleet/crc32';
+
 /**
  * A tiny PNG painter for the simulated TouchCut screenshot: an indexed-colour canvas, lines,
  * rectangles and a 3x5 pixel font, encoded as a PNG with stored (uncompressed) deflate blocks so it
@@ -89,21 +91,6 @@ function concat(parts: Uint8Array[]): Uint8Array {
   return out;
 }
 
-const CRC_TABLE = (() => {
-  const t = new Uint32Array(256);
-  for (let n = 0; n < 256; n++) {
-    let c = n;
-    for (let k = 0; k < 8; k++) c = c & 1 ? 0xedb88320 ^ (c >>> 1) : c >>> 1;
-    t[n] = c >>> 0;
-  }
-  return t;
-})();
-
-function crc32(bytes: Uint8Array): number {
-  let c = 0xffffffff;
-  for (const b of bytes) c = (CRC_TABLE[(c ^ b) & 0xff] ?? 0) ^ (c >>> 8);
-  return (c ^ 0xffffffff) >>> 0;
-}
 
 function chunk(type: string, data: Uint8Array): Uint8Array {
   const out = new Uint8Array(12 + data.length);
