@@ -61,7 +61,7 @@ describe('starting a family when its code has loaded', () => {
     expect(load).toHaveBeenCalledTimes(4);
     expect(rt.session).toBeNull();
     expect(rt.error).toMatch(
-      /could not load its Duet \(DSF\) code \(Failed to fetch.*\)\. Reload the page\./,
+      /could not load its Duet \(RepRapFirmware\) code \(Failed to fetch.*\)\. Reload the page\./,
     );
     expect(rt.snapshot.getState().link).toBe('protocol-error');
     expect(rt.log.store.getState().entries.some((e) => e.text.includes('could not load'))).toBe(true);

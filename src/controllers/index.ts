@@ -23,7 +23,7 @@ export const controllerLoaders: Record<MachineKind, () => Promise<ControllerModu
 export const FAMILY_LABELS: Record<MachineKind, string> = {
   touchcut: 'Kinetic TouchCut',
   g2core: 'g2core CNC (REST)',
-  duet: 'Duet (DSF)',
+  duet: 'Duet (RepRapFirmware)',
   xtool: 'xTool D-series',
   prunt: 'Prunt',
 };

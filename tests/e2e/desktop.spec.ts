@@ -93,7 +93,7 @@ test.describe('desktop', () => {
     await expect(page).toHaveURL(/\?view=list&sort=name&group=family$/);
     const headings = list.locator('tbody .fleet-list-group th');
     await expect(headings).toHaveText([
-      'Duet (DSF) (1)',
+      'Duet (RepRapFirmware) (1)',
       'g2core CNC (REST) (1)',
       'Kinetic TouchCut (1)',
       'Prunt (1)',

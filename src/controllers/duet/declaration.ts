@@ -9,7 +9,7 @@ import { duetSharing } from './sharing';
  */
 export const duetDeclaration: FamilyDeclaration = {
   kind: 'duet',
-  label: 'Duet (DSF)',
+  label: 'Duet (RepRapFirmware)',
   access: duetAccess,
   accessNeedsBody: duetAccessNeedsBody,
   gateway: {
