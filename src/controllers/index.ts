@@ -22,7 +22,7 @@ export const controllerLoaders: Record<MachineKind, () => Promise<ControllerModu
 /** Each family's name, as its declaration says it (a test keeps them equal). */
 export const FAMILY_LABELS: Record<MachineKind, string> = {
   touchcut: 'Kinetic TouchCut',
-  g2core: 'g2core CNC (REST)',
+  g2core: 'g2core CNC',
   duet: 'Duet (RepRapFirmware)',
   xtool: 'xTool D-series',
   prunt: 'Prunt',

@@ -94,7 +94,7 @@ test.describe('desktop', () => {
     const headings = list.locator('tbody .fleet-list-group th');
     await expect(headings).toHaveText([
       'Duet (RepRapFirmware) (1)',
-      'g2core CNC (REST) (1)',
+      'g2core CNC (1)',
       'Kinetic TouchCut (1)',
       'Prunt (1)',
       'xTool D-series (1)',

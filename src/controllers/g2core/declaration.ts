@@ -9,7 +9,7 @@ import { g2coreSharing } from './sharing';
  */
 export const g2coreDeclaration: FamilyDeclaration = {
   kind: 'g2core',
-  label: 'g2core CNC (REST)',
+  label: 'g2core CNC',
   access: g2coreAccess,
   accessNeedsBody: g2coreAccessNeedsBody,
   gateway: { sharing: g2coreSharing },
