@@ -174,6 +174,9 @@ describe('attacks on the read socket', () => {
     const a = await r.ask({ id: 1, url: '/machines/p1/status' });
     expect(a.status).toBe(http.status);
     expect(a.status).toBeGreaterThanOrEqual(403);
+    // The gateway's own refusal, marked as over HTTP: the page never reads it as the controller's.
+    expect((a.headers as Record<string, string>)['x-shopdeck-gateway']).toBe('error');
+    expect(http.headers.get('x-shopdeck-gateway')).toBe('error');
     expect(s.stub.seen.length).toBe(before);
     expect((await r.ask({ id: 2, url: '/machines/p2/status' })).status).toBe(200);
   });
