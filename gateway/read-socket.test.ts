@@ -204,7 +204,7 @@ describe('attacks on the read socket', () => {
     expect(s.stub.seen.length).toBe(0);
   });
 
-  it('a malformed message, a binary one or an oversized one closes the socket', async () => {
+  it('a malformed message (a header that smuggles a line break), a binary one or an oversized one closes the socket', async () => {
     const s = await setup();
     const cookie = await login(s.gw.url, 'vera', 'viewer-pass-1');
     const a = await reader(s, cookie);
@@ -216,6 +216,14 @@ describe('attacks on the read socket', () => {
     const c = await reader(s, cookie);
     c.ws.send(Buffer.from('{}'), { binary: true });
     expect((await c.closed).code).toBe(1003);
+    const e = await reader(s, cookie);
+    e.ws.send(
+      JSON.stringify({ id: 1, url: '/machines/p1/status', headers: { 'X-A': 'v\r\nX-Api-Key: forged' } }),
+    );
+    expect((await e.closed).code).toBe(1008);
+    const f = await reader(s, cookie);
+    f.ws.send(JSON.stringify({ id: 1, url: '/machines/p1/status', headers: { 'Bad Name': 'v' } }));
+    expect((await f.closed).code).toBe(1008);
     const d = await reader(s, cookie);
     d.ws.send(JSON.stringify({ id: 1, url: `/machines/p1/${'a'.repeat(READ_SOCKET_LIMITS.maxMessage)}` }));
     expect((await d.closed).code).toBe(1009);

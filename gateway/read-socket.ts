@@ -46,6 +46,9 @@ export const READ_SOCKET_LIMITS = {
 /** The answer headers a page gets on the socket (what the console's clients read). */
 const PASSED_HEADERS = ['content-type', 'x-shopdeck-gateway', 'retry-after'];
 
+const HEADER_NAME = /^[!#$%&'*+.^_`|~0-9A-Za-z-]+$/;
+const HEADER_VALUE = /^[\t\x20-\x7e\x80-\xff]*$/;
+
 const Ask = z.union([
   z
     .object({
@@ -55,7 +58,10 @@ const Ask = z.union([
         .positive()
         .max(2 ** 31),
       url: z.string().min(1).max(4096),
-      headers: z.record(z.string().max(100), z.string().max(4096)).optional(),
+      // Header names and values as HTTP allows them (no line breaks to smuggle a second header).
+      headers: z
+        .record(z.string().max(100).regex(HEADER_NAME), z.string().max(4096).regex(HEADER_VALUE))
+        .optional(),
     })
     .strict(),
   z
