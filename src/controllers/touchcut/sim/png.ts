@@ -91,7 +91,6 @@ function concat(parts: Uint8Array[]): Uint8Array {
   return out;
 }
 
-
 function chunk(type: string, data: Uint8Array): Uint8Array {
   const out = new Uint8Array(12 + data.length);
   const dv = new DataView(out.buffer);
