@@ -1,5 +1,6 @@
 import { statusText } from '../../src/controllers/g2core/codes';
 import { G2Fail } from '../../src/controllers/g2core/sim/fail';
+import { pruneEndedJobs } from '../../src/controllers/g2core/sim/job-wire';
 import { CTRL, MAX_REPORT_KEYS, lineProblem, scalarsOf, sendableLine, type JsonObject } from './protocol';
 import { LinkDown, type DataLine, type Reply, type SerialLink } from './link';
 
@@ -258,10 +259,7 @@ export class Streamer {
   private prune(): void {
     const ended = [...this.ops.values()].filter((o) => o.state === 'done' || o.state === 'error');
     for (const o of ended.slice(0, -KEEP_FINISHED)) this.ops.delete(o.id);
-    const endedJobs = [...this.jobs.values()].filter(
-      (j) => !['queued', 'running', 'paused'].includes(j.state),
-    );
-    for (const j of endedJobs.slice(0, -KEEP_FINISHED)) this.jobs.delete(j.id);
+    pruneEndedJobs(this.jobs, KEEP_FINISHED);
   }
 
   // ---------------------------------------------------------------------------- commands

@@ -1,13 +1,7 @@
 import { z } from 'zod';
 import { LinkError } from '../../fleet/errors';
-import {
-  HttpClient,
-  preview,
-  uploadWithProgress,
-  type RawResponse,
-  type UploadProgress,
-} from '../../fleet/http';
-import type { RrfClient } from './rrf-client';
+import { HttpClient, preview, uploadWithProgress, type RawResponse } from '../../fleet/http';
+import type { RrfClient, UploadOptions } from './rrf-client';
 import { connectAnswer, connectRefusal, isStandaloneAnswer } from './rrf-connect';
 import {
   directoryListing,
@@ -246,16 +240,7 @@ export class DuetClient {
   }
 
   /** `PUT /machine/file/{path}?timeModified=<ISO>` with upload progress; 201 when created. */
-  upload(
-    path: string,
-    body: Blob | ArrayBuffer | string,
-    opts: {
-      timeModified?: Date;
-      onProgress?: (p: UploadProgress) => void;
-      signal?: AbortSignal;
-      commandId?: string;
-    } = {},
-  ): Promise<RawResponse> {
+  upload(path: string, body: Blob | ArrayBuffer | string, opts: UploadOptions = {}): Promise<RawResponse> {
     if (this.standalone) return this.rrf.upload(path, body, opts);
     const headers: Record<string, string> = { 'Content-Type': 'application/octet-stream' };
     if (this.sessionKey) headers['X-Session-Key'] = this.sessionKey;

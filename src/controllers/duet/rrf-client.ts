@@ -59,6 +59,14 @@ function failed(what: string, err: number): LinkError {
   });
 }
 
+/** What an upload takes besides its path and body (the DSF client's and this one's). */
+export interface UploadOptions {
+  timeModified?: Date;
+  onProgress?: (p: UploadProgress) => void;
+  signal?: AbortSignal;
+  commandId?: string;
+}
+
 interface ReplyWaiter {
   resolve: (text: string) => void;
   timer: ReturnType<typeof setTimeout>;
@@ -233,16 +241,7 @@ export class RrfClient {
   }
 
   /** `POST rr_upload?name=&time=&crc32=` with the raw body; `{"err":1}` is a failed upload. */
-  async upload(
-    path: string,
-    body: Blob | ArrayBuffer | string,
-    opts: {
-      timeModified?: Date;
-      onProgress?: (p: UploadProgress) => void;
-      signal?: AbortSignal;
-      commandId?: string;
-    },
-  ): Promise<RawResponse> {
+  async upload(path: string, body: Blob | ArrayBuffer | string, opts: UploadOptions): Promise<RawResponse> {
     const bytes =
       typeof body === 'string'
         ? new TextEncoder().encode(body)

@@ -52,3 +52,13 @@ export function jobView(
   if (op?.error) v.error = op.error;
   return v;
 }
+
+/** Keeps the ended jobs' history bounded: the `keep` last to end stay, the older ones go. */
+export function pruneEndedJobs(
+  jobs: Map<number, { id: number; state: string; finished: number | null }>,
+  keep: number,
+): void {
+  const ended = [...jobs.values()].filter((j) => !['queued', 'running', 'paused'].includes(j.state));
+  for (const j of ended.sort((a, b) => (a.finished ?? 0) - (b.finished ?? 0)).slice(0, -keep))
+    jobs.delete(j.id);
+}

@@ -1,6 +1,6 @@
 import { jsonResponse } from '../../../fleet/sim';
 import { G2Fail, isRecord } from './fail';
-import { jobView, readJobUpload } from './job-wire';
+import { jobView, pruneEndedJobs, readJobUpload } from './job-wire';
 import { G2coreMotion } from './motion';
 import type { SimJob } from './state';
 
@@ -59,9 +59,7 @@ export abstract class G2coreJobs extends G2coreMotion {
     this.jobs.set(job.id, job);
     this.queue.push(job.id);
     // Keep the finished history bounded (the demo loop queues a job every few minutes).
-    const done = [...this.jobs.values()].filter((j) => !['queued', 'running', 'paused'].includes(j.state));
-    for (const j of done.sort((a, b) => (a.finished ?? 0) - (b.finished ?? 0)).slice(0, -50))
-      this.jobs.delete(j.id);
+    pruneEndedJobs(this.jobs, 50);
     return job;
   }
 
