@@ -1,5 +1,5 @@
 import { afterEach, beforeEach, describe, expect, it, vi } from 'vitest';
-import { backoffDelay, HIDDEN_POLL_MS, Poller, type Visibility } from './link';
+import { backoffDelay, gridDelay, HIDDEN_POLL_MS, Poller, type Visibility } from './link';
 
 describe('backoffDelay', () => {
   it('grows exponentially from about 1 s and caps at 30 s', () => {
@@ -32,9 +32,53 @@ function fakeVisibility(): Visibility & { setHidden(h: boolean): void } {
   };
 }
 
+describe('gridDelay', () => {
+  it('lands on a multiple of the period, half a period to one and a half from now', () => {
+    expect(gridDelay(10_000, 1000)).toBe(1000);
+    expect(gridDelay(10_499, 1000)).toBe(501);
+    expect(gridDelay(10_500, 1000)).toBe(500);
+    expect(gridDelay(10_999, 1000)).toBe(1001);
+    for (const now of [0, 1, 333, 12_345, 1_700_000_000_123]) {
+      const d = gridDelay(now, 2000);
+      expect((now + d) % 2000).toBe(0);
+      expect(d).toBeGreaterThanOrEqual(1000);
+      expect(d).toBeLessThan(3000);
+    }
+  });
+});
+
 describe('Poller', () => {
   beforeEach(() => vi.useFakeTimers());
   afterEach(() => vi.useRealTimers());
+
+  it('aligned: machines polled at the same pace start together on the shared grid', async () => {
+    vi.setSystemTime(50_000);
+    const starts: Array<[string, number]> = [];
+    const make = (name: string, ms: number) => {
+      const p = new Poller({
+        run: async () => {
+          starts.push([name, Date.now()]);
+          // Answers take different times: alignment must not drift with them.
+          await new Promise((r) => setTimeout(r, name === 'a' ? 37 : 180));
+        },
+        intervalMs: () => 1000,
+        visibility: fakeVisibility(),
+        aligned: () => true,
+      });
+      p.start(ms);
+      return p;
+    };
+    const a = make('a', 0);
+    const b = make('b', 420);
+    await vi.advanceTimersByTimeAsync(5000);
+    a.stop();
+    b.stop();
+    const after = starts.filter(([, t]) => t >= 52_000);
+    expect(after.length).toBeGreaterThanOrEqual(6);
+    for (const [, t] of after) expect(t % 1000).toBe(0);
+    const times = (n: string) => after.filter(([x]) => x === n).map(([, t]) => t);
+    expect(times('a')).toEqual(times('b'));
+  });
 
   it('never starts a poll while the previous one is still running', async () => {
     let running = 0;

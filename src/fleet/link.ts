@@ -41,6 +41,18 @@ export const documentVisibility: Visibility = {
 
 export const alwaysVisible: Visibility = { hidden: () => false, subscribe: () => () => undefined };
 
+/**
+ * The delay to the next moment on the shared grid of `periodMs` (multiples of it since the epoch),
+ * between half a period and one and a half from `now`. Polls that follow it start in the same
+ * moment on every machine of a page (and on every page of the shop): their answers arrive
+ * together and are drawn in one frame instead of one each, and the console server's read sharing
+ * finds two screens' identical reads at the same time (issue 16: one clock, not a timer per tile).
+ */
+export function gridDelay(now: number, periodMs: number): number {
+  if (!(periodMs > 0)) return 0;
+  return Math.ceil((now + periodMs / 2) / periodMs) * periodMs - now;
+}
+
 /** While the page is hidden a machine is polled at most once per this many ms. */
 export const HIDDEN_POLL_MS = 10_000;
 
@@ -54,6 +66,13 @@ export interface PollerOptions {
   onError?: (e: unknown) => void;
   /** Delay after a failed poll; defaults to the interval. */
   retryDelayMs?: (failures: number) => number;
+  /**
+   * True: after a good poll the next starts on the shared grid of the interval (`gridDelay`)
+   * rather than exactly one interval after the end (a machine shown only on a tile). Retries and
+   * kicks are never moved.
+   */
+  aligned?: () => boolean;
+  now?: () => number;
 }
 
 /**
@@ -117,7 +136,9 @@ export class Poller {
       this.failures > 0 && this.opts.retryDelayMs
         ? this.opts.retryDelayMs(this.failures)
         : this.opts.intervalMs();
-    return this.vis.hidden() ? Math.max(base, HIDDEN_POLL_MS) : base;
+    const delay = this.vis.hidden() ? Math.max(base, HIDDEN_POLL_MS) : base;
+    if (this.failures > 0 || !this.opts.aligned?.()) return delay;
+    return gridDelay((this.opts.now ?? Date.now)(), delay);
   }
 
   private schedule(delayMs: number): void {
@@ -301,7 +322,11 @@ export class SocketLink {
     return this.ws !== null && this.ws.readyState === 1;
   }
 
+  /** Counts the sockets this link opened: what was said on one socket belongs to it only. */
+  generation = 0;
+
   connect(): void {
+    this.generation++;
     this.closedByUs = false;
     if (this.timer) clearTimeout(this.timer);
     this.timer = null;

@@ -1,12 +1,12 @@
 import { setupServer } from 'msw/node';
 import { afterAll, afterEach, beforeAll, beforeEach, describe, expect, it, vi } from 'vitest';
 import { createContext } from '../../fleet/fleet';
-import { alwaysVisible } from '../../fleet/link';
+import { alwaysVisible, SocketLink } from '../../fleet/link';
 import { simulatorHandlers } from '../../fleet/msw';
 import { FaultySimulator } from '../../fleet/sim';
 import type { SessionContext } from '../../fleet/contract';
 import { fileInfoKey } from './reads';
-import { DuetSession, messageBoxReply } from './session';
+import { DuetSession, messageBoxReply, TILE_ACK_MS } from './session';
 import { DuetSimulator } from './sim/simulator';
 
 let sim: DuetSimulator;
@@ -62,6 +62,49 @@ describe('DuetSession through msw', () => {
     sim.runCode('M140 S60');
     await until(() => (session.store.getState().model?.heat.heaters[0]?.current ?? 0) > 25);
     expect(snap().temperatures[0]?.target).toBe(60);
+  });
+
+  it('on a tile only, asks for a patch a second (TILE_ACK_MS); on its page, after each one at once', async () => {
+    let detail = false;
+    ctx = createContext(
+      { id: 'dm', name: 'Duet', kind: 'duet', simulated: true },
+      {
+        visibility: alwaysVisible,
+        principal: () => ({ name: 'tester', role: 'supervisor' }),
+        detail: () => detail,
+      },
+    );
+    session.stop();
+    session = new DuetSession(ctx);
+    const send = vi.spyOn(SocketLink.prototype, 'send');
+    session.start();
+    await until(() => snap().link === 'online');
+    sim.runCode('M140 S60');
+    send.mockClear();
+    await advance(5000);
+    for (const c of send.mock.calls) expect(c[0]).toBe('OK\n');
+    const tileOks = send.mock.calls.length;
+    // The simulator changes the model every 250 ms: twenty patches' worth, asked for five times.
+    expect(tileOks).toBeGreaterThanOrEqual(4);
+    expect(tileOks).toBeLessThanOrEqual(6);
+    // Nothing lost: the next patch carries every change made meanwhile.
+    const heater = () => session.store.getState().model?.heat.heaters[0]?.current ?? 0;
+    const simHeater = (): number => {
+      const heat = sim.model['heat'];
+      const heaters = heat && typeof heat === 'object' && !Array.isArray(heat) ? heat['heaters'] : null;
+      const h = Array.isArray(heaters) ? heaters[0] : null;
+      const v = h && typeof h === 'object' && !Array.isArray(h) ? h['current'] : null;
+      return typeof v === 'number' ? v : NaN;
+    };
+    await advance(TILE_ACK_MS + 300);
+    expect(heater()).toBeGreaterThan(25);
+    expect(Math.abs(heater() - simHeater())).toBeLessThan(5);
+    detail = true;
+    await advance(TILE_ACK_MS);
+    send.mockClear();
+    await advance(2000);
+    expect(send.mock.calls.length).toBeGreaterThanOrEqual(6);
+    send.mockRestore();
   });
 
   it('declares its commands by id, each with a role that matches the access policy', () => {

@@ -3,7 +3,7 @@ import type { AnyCommand, CommandDecl } from '../../fleet/commands';
 import type { LinkTracker, SessionContext } from '../../fleet/contract';
 import { describeError, LinkError } from '../../fleet/errors';
 import { KernelSession, type RunToken } from '../../fleet/kernel';
-import type { Poller, SocketLink } from '../../fleet/link';
+import { gridDelay, type Poller, type SocketLink } from '../../fleet/link';
 import { DuetClient, isAuthError } from './client';
 import {
   asLinkFault,
@@ -84,6 +84,16 @@ export const RESYNC_EVERY_MS = 10_000;
  * session, which RRF drops after 8 s of silence.
  */
 export const RRF_POLL_MS = 1000;
+/** A standalone board shown only on a tile (no page of it open): `rr_model` at the tile's pace. */
+export const RRF_TILE_POLL_MS = 2000;
+/**
+ * Shown only on a tile, the socket's model updates come at most this often: the `OK` that asks
+ * for the next patch waits until this long after the last one. The sender (DSF, or the console
+ * server's shared socket) then sends one patch with every change made meanwhile, so nothing is
+ * lost, and an idle fleet page is not woken four times a second per printer (issue 16). On the
+ * machine's page every patch is acknowledged at once, as Duet Web Control does.
+ */
+export const TILE_ACK_MS = 1000;
 
 export class DuetSession extends KernelSession {
   readonly client: DuetClient;
@@ -96,6 +106,9 @@ export class DuetSession extends KernelSession {
   private readonly ingest: ModelIngest;
   private readonly uploads: DuetUploads;
   private readonly socket: { current: () => SocketLink | null };
+  /** When the last `OK` went (tile pacing), and whether one waits to go. */
+  private lastAckAt = 0;
+  private ackWaiting: { generation: number } | null = null;
   /** `GET /machine/model` while the socket has been down for POLL_AFTER_MS. */
   private readonly modelPoll: Poller;
   /** `GET /machine/noop` while the socket is down (and the model is not polled yet). */
@@ -208,7 +221,7 @@ export class DuetSession extends KernelSession {
       name: 'rr_model (standalone)',
       read: (signal) => this.client.rrf.poll(signal),
       apply: (raw) => this.onStandaloneModel(raw as JsonObject),
-      intervalMs: () => RRF_POLL_MS,
+      intervalMs: () => (this.ctx.detail() ? RRF_POLL_MS : RRF_TILE_POLL_MS),
       when: () => this.client.standalone && this.sessionUsable(),
       failed: (e) => this.standalonePollFailed(e),
     });
@@ -459,8 +472,37 @@ export class DuetSession extends KernelSession {
       this.ingest.frame(frame, !this.gotFirst);
       this.gotFirst = true;
     }
-    // Acknowledge: the server sends nothing more until it has our OK.
-    this.socket.current()?.send('OK\n');
+    // Acknowledge: the server sends nothing more until it has our OK (paced on a tile).
+    this.acknowledge();
+  }
+
+  /** The `OK` after a frame: at once on the machine's page, at the tile's pace otherwise. */
+  private acknowledge(): void {
+    const socket = this.socket.current();
+    if (!socket) return;
+    // One `OK` per frame: the sender waits for it, so at most one is ever waiting per socket.
+    if (this.ackWaiting?.generation === socket.generation) return;
+    const now = this.ctx.now();
+    // On the grid of the tiles' polls (gridDelay), the next grid moment after the last `OK`.
+    const wait = this.ctx.detail()
+      ? 0
+      : gridDelay(Math.max(now, this.lastAckAt), TILE_ACK_MS) + Math.max(0, this.lastAckAt - now);
+    if (wait <= 0) {
+      this.ackWaiting = null;
+      this.lastAckAt = now;
+      socket.send('OK\n');
+      return;
+    }
+    const mine = { generation: socket.generation };
+    this.ackWaiting = mine;
+    this.later(() => {
+      if (this.ackWaiting !== mine) return;
+      this.ackWaiting = null;
+      // Only on the socket that sent the frame: a new socket starts with a full model of its own.
+      if (this.socket.current() !== socket || socket.generation !== mine.generation) return;
+      this.lastAckAt = this.ctx.now();
+      socket.send('OK\n');
+    }, wait);
   }
 
   /**

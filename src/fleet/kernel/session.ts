@@ -120,6 +120,9 @@ export abstract class KernelSession implements MachineSession {
         retryMs = typeof d === 'number' ? d : undefined;
       },
       retryDelayMs: () => retryMs ?? spec.intervalMs(),
+      // Shown only on a tile: on the page's shared grid, so the fleet's answers come together.
+      aligned: () => !this.ctx.detail(),
+      now: this.ctx.now,
     });
     this.pollers.push({ poller, firstDelayMs: spec.firstDelayMs ?? 0 });
     return poller;
