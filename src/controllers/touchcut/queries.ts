@@ -205,9 +205,9 @@ export class OpenDataFeed {
       this.full = false;
       return undefined;
     }
-    const s = this.host.queries.client.getQueryState<OpenData>(this.host.queries.key(...key));
-    if (!s || s.data === undefined) return undefined;
-    return this.host.now() - s.dataUpdatedAt <= 2 * PROGRAMS_REFRESH_MS ? s.data : undefined;
+    const s = this.host.queries.cached<OpenData>(key);
+    if (!s) return undefined;
+    return this.host.now() - s.updatedAt <= 2 * PROGRAMS_REFRESH_MS ? s.data : undefined;
   }
 
   page(offset: number, limit: number): void {

@@ -1,4 +1,3 @@
-import { QueryObserver } from '@tanstack/query-core';
 import { setupServer } from 'msw/node';
 import { afterAll, afterEach, beforeAll, beforeEach, describe, expect, it, vi } from 'vitest';
 import type { Principal } from '../../fleet/commands';
@@ -225,15 +224,13 @@ describe('on-demand reads', () => {
     session.start();
     await until(() => ctx.snapshot.getState().link === 'online');
     // What the Safety tab does (useXtoolSettings): observe the settings read.
-    const shown = new QueryObserver<XtoolSettings, Error>(ctx.queries.client, {
-      queryKey: ctx.queries.key(...SETTINGS_KEY),
-      queryFn: ({ signal }) => session.reads.settings(signal),
-      staleTime: 60_000,
+    const shown = ctx.queries.watch<XtoolSettings>(SETTINGS_KEY, session.reads.settings, {
+      staleTimeMs: 60_000,
     });
     const unsubscribe = shown.subscribe(() => undefined);
-    await until(() => shown.getCurrentResult().data?.periphery?.tiltStopFlag === true, 1000);
+    await until(() => shown.view.data?.periphery?.tiltStopFlag === true, 1000);
     await ctx.commands.run(session.tiltStopOff, undefined);
-    await until(() => shown.getCurrentResult().data?.periphery?.tiltStopFlag === false, 500);
+    await until(() => shown.view.data?.periphery?.tiltStopFlag === false, 500);
     expect(session.detail.getState().periphery?.tiltStopFlag).toBe(false);
     unsubscribe();
   });
@@ -242,13 +239,11 @@ describe('on-demand reads', () => {
     const { probe, session, ctx } = setup();
     session.start();
     await until(() => ctx.snapshot.getState().link === 'online');
-    const shown = new QueryObserver<FileList, Error>(ctx.queries.client, {
-      queryKey: ctx.queries.key(...filesKey('/jobs')),
-      queryFn: ({ signal }) => session.reads.files('/jobs')(signal),
-      staleTime: 30_000,
+    const shown = ctx.queries.watch<FileList>(filesKey('/jobs'), session.reads.files('/jobs'), {
+      staleTimeMs: 30_000,
     });
     const unsubscribe = shown.subscribe(() => undefined);
-    await until(() => (shown.getCurrentResult().data?.name.length ?? 0) > 0, 1000);
+    await until(() => (shown.view.data?.name.length ?? 0) > 0, 1000);
     const file = new Blob(['G1 X1\n']);
     await ctx.commands.run(session.upload, {
       file,
@@ -256,9 +251,9 @@ describe('on-demand reads', () => {
       target: { kind: 'path', filename: '/jobs/new.gcode' },
     });
     const lists = probe.count('/list');
-    expect(shown.getCurrentResult().data?.name.some((n) => n.endsWith('new.gcode'))).toBe(true);
+    expect(shown.view.data?.name.some((n) => n.endsWith('new.gcode'))).toBe(true);
     await ctx.commands.run(session.deleteFile, { path: '/jobs/new.gcode' });
-    await until(() => !shown.getCurrentResult().data?.name.some((n) => n.endsWith('new.gcode')), 500);
+    await until(() => !shown.view.data?.name.some((n) => n.endsWith('new.gcode')), 500);
     expect(probe.count('/list')).toBe(lists + 1);
     unsubscribe();
   });

@@ -86,7 +86,7 @@ export async function verifiedUpload(host: UploadHost, a: UploadArgs, commandId:
     }
     // The verification listing is the folder's new listing: it goes into the query layer as it is,
     // so the Files tab shows it without asking the laser a second time.
-    if (run.alive()) ctx.queries.client.setQueryData(ctx.queries.key(...filesKey(dir)), list);
+    if (run.alive()) ctx.queries.set(filesKey(dir), list);
     const armed = a.target.kind !== 'path';
     const message = armed
       ? `${a.name} is on the laser. The ${a.target.kind === 'frame' ? 'framing' : 'job'} starts with the button on the machine.${caveat}`

@@ -15,4 +15,5 @@ export {
   type MachineQueriesOptions,
   type QueryOptions,
   type QueryView,
+  type QueryWatch,
 } from './query';

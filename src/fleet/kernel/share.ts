@@ -1,4 +1,3 @@
-import { replaceEqualDeep } from '@tanstack/query-core';
 import { createStore, type StateCreator, type StoreApi } from 'zustand/vanilla';
 
 /**
@@ -8,7 +7,71 @@ import { createStore, type StateCreator, type StoreApi } from 'zustand/vanilla';
  * changes nothing notifies nobody. Plain objects and arrays are compared; anything else (a Map,
  * a class instance, a Blob) is replaced as written.
  */
-export { replaceEqualDeep };
+
+const hasOwn = Object.prototype.hasOwnProperty;
+
+/** `[object Object]` by `Object.prototype.toString` (not a Date, a Map, a tagged class, …). */
+function hasObjectPrototype(o: unknown): boolean {
+  return Object.prototype.toString.call(o) === '[object Object]';
+}
+
+/** An object literal or `Object.create(null)`: not a class instance. */
+export function isPlainObject(o: unknown): o is Record<PropertyKey, unknown> {
+  if (!hasObjectPrototype(o)) return false;
+  const proto: unknown = Object.getPrototypeOf(o);
+  const ctor: unknown = (proto as { constructor?: unknown } | null)?.constructor;
+  if (ctor === undefined) return true;
+  if (typeof ctor !== 'function') return false;
+  const prot: unknown = ctor.prototype;
+  if (!hasObjectPrototype(prot)) return false;
+  if (!hasOwn.call(prot, 'isPrototypeOf')) return false;
+  return proto === Object.prototype;
+}
+
+/** An array with no holes and no extra properties. */
+function isPlainArray(value: unknown): value is unknown[] {
+  return Array.isArray(value) && value.length === Object.keys(value).length;
+}
+
+/**
+ * `b`, with every part deep-equal to the same part of `a` replaced by `a`'s object; `a` itself
+ * when all of it is equal. Only plain objects and plain arrays are walked; any other value
+ * (a Map, a Date, a class instance) is taken from `b` as written unless it is the same reference.
+ * An array of another length, or an object with other keys, is a new object (its equal items
+ * still `a`'s); a key whose value is `undefined` counts as a key.
+ */
+export function replaceEqualDeep<T>(a: unknown, b: T, depth?: number): T;
+export function replaceEqualDeep(a: unknown, b: unknown, depth = 0): unknown {
+  if (a === b) return a;
+  if (depth > 500) return b;
+  const array = isPlainArray(a) && isPlainArray(b);
+  if (!array && !(isPlainObject(a) && isPlainObject(b))) return b;
+  const prev = a as Record<PropertyKey, unknown>;
+  const next = b as Record<PropertyKey, unknown>;
+  const aSize = (array ? (a as unknown[]) : Object.keys(prev)).length;
+  const bItems = array ? (b as unknown[]) : Object.keys(next);
+  const bSize = bItems.length;
+  const copy = (array ? new Array(bSize) : {}) as Record<PropertyKey, unknown>;
+  let equalItems = 0;
+  for (let i = 0; i < bSize; i++) {
+    const key = array ? i : (bItems[i] as string);
+    const aItem = prev[key];
+    const bItem = next[key];
+    if (aItem === bItem) {
+      copy[key] = aItem;
+      if (array ? i < aSize : hasOwn.call(prev, key)) equalItems++;
+      continue;
+    }
+    if (aItem === null || bItem === null || typeof aItem !== 'object' || typeof bItem !== 'object') {
+      copy[key] = bItem;
+      continue;
+    }
+    const v = replaceEqualDeep(aItem, bItem, depth + 1);
+    copy[key] = v;
+    if (v === aItem) equalItems++;
+  }
+  return aSize === bSize && equalItems === aSize ? a : copy;
+}
 
 type SetState<T> = StoreApi<T>['setState'];
 

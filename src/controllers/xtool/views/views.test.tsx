@@ -31,7 +31,7 @@ function online(role: Role) {
 /** The Safety tab shows the settings read (an on-demand read): put one answer in the query layer. */
 function settingsRead(session: XtoolSession, periphery: PeripheryStatus): void {
   const answer: XtoolSettings = { periphery, offset: null, dotMode: null };
-  session.ctx.queries.client.setQueryData(session.ctx.queries.key(...SETTINGS_KEY), answer);
+  session.ctx.queries.set(SETTINGS_KEY, answer);
 }
 
 beforeEach(() => authStore.setState({ mode: 'unknown', user: null }));
