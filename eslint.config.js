@@ -72,6 +72,20 @@ export default tseslint.config(
       ],
     },
   },
+  // The page's zod is zod/mini (src/zod-jitless.ts): classic zod, whose methods bring every schema
+  // kind (~25 KiB gzip), stays out of src/. The gateway's own schemas (Node) may use it.
+  {
+    files: ['src/**/*.{ts,tsx}'],
+    rules: {
+      'no-restricted-imports': [
+        'error',
+        ...['zod', 'zod/v4', 'zod/v3'].map((name) => ({
+          name,
+          message: "The page uses zod/mini: import { z } from 'zod/mini' (src/zod-jitless.ts).",
+        })),
+      ],
+    },
+  },
   { files: ['**/*.tsx'], ...jsxA11y.flatConfigs.recommended },
   // Playwright fixtures are destructured objects; `({}, testInfo)` is its documented idiom.
   { files: ['tests/e2e/**'], rules: { 'no-empty-pattern': 'off' } },

@@ -11,9 +11,12 @@ export default defineConfig({
   // The bundle report (bundle-report/bundle.{json,md}): sizes of what each screen loads.
   // VitePWA: the web manifest and the service worker, in builds only (src/app/pwa/options.ts).
   plugins: [react(), shopdeckGateway(), bundleReport(), VitePWA(pwaOptions)],
-  // zod with `jitless` set before any schema exists, in every chunk (src/zod-jitless.ts).
+  // zod/mini with `jitless` and English messages set before any schema exists, in every chunk
+  // (src/zod-jitless.ts; vitest.config.ts has the same alias).
   resolve: {
-    alias: [{ find: /^zod$/, replacement: fileURLToPath(new URL('./src/zod-jitless.ts', import.meta.url)) }],
+    alias: [
+      { find: /^zod\/mini$/, replacement: fileURLToPath(new URL('./src/zod-jitless.ts', import.meta.url)) },
+    ],
   },
   server: { port: Number(process.env.SHOPDECK_PORT ?? 5173), host: process.env.SHOPDECK_HOST ?? 'localhost' },
   preview: {

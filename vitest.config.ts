@@ -1,6 +1,13 @@
+import { fileURLToPath } from 'node:url';
 import { defineConfig } from 'vitest/config';
 
 export default defineConfig({
+  // The page's zod/mini, configured as in the browser (vite.config.ts, src/zod-jitless.ts).
+  resolve: {
+    alias: [
+      { find: /^zod\/mini$/, replacement: fileURLToPath(new URL('./src/zod-jitless.ts', import.meta.url)) },
+    ],
+  },
   test: {
     include: [
       'src/**/*.test.{ts,tsx}',

@@ -1,4 +1,4 @@
-import { z } from 'zod';
+import { z } from 'zod/mini';
 import { FAMILY_LABELS, loadController, registerController } from '../controllers';
 import { authStore } from '../fleet/auth';
 import {
@@ -27,7 +27,7 @@ const MachinesAnswer = z.object({
       name: z.string(),
       kind: z.enum(MACHINE_KINDS),
       simulated: z.boolean(),
-      group: z.string().optional(),
+      group: z.optional(z.string()),
     }),
   ),
 });

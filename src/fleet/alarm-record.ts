@@ -1,4 +1,4 @@
-import { z } from 'zod';
+import { z } from 'zod/mini';
 
 /**
  * A record of the alarm centre (gateway/alarms.ts keeps them; the page shows them): one alarm or
@@ -6,21 +6,21 @@ import { z } from 'zod';
  * acknowledged it when. The same schema checks the gateway's file and the page's answers.
  */
 export const alarmRecordSchema = z.object({
-  id: z.string().max(40),
-  machine: z.string().max(100),
-  machineName: z.string().max(200),
-  family: z.string().max(40),
+  id: z.string().check(z.maxLength(40)),
+  machine: z.string().check(z.maxLength(100)),
+  machineName: z.string().check(z.maxLength(200)),
+  family: z.string().check(z.maxLength(40)),
   /** The condition (the family's alarm id, `xtool-flame`); one open record per machine and key. */
-  key: z.string().max(200),
+  key: z.string().check(z.maxLength(200)),
   severity: z.enum(['critical', 'warning', 'info']),
-  text: z.string().max(500),
+  text: z.string().check(z.maxLength(500)),
   /** Blocks every page until a person acknowledges it (an xTool flame). */
-  blocking: z.boolean().default(false),
+  blocking: z._default(z.boolean(), false),
   /** ms since epoch */
   since: z.number(),
-  clearedAt: z.number().nullable(),
-  ackBy: z.string().max(200).nullable(),
-  ackAt: z.number().nullable(),
+  clearedAt: z.nullable(z.number()),
+  ackBy: z.nullable(z.string().check(z.maxLength(200))),
+  ackAt: z.nullable(z.number()),
 });
 
 export type AlarmRecord = z.infer<typeof alarmRecordSchema>;

@@ -1,4 +1,4 @@
-import type { ZodError } from 'zod';
+import type { z } from 'zod/mini';
 import type { LinkProblem } from './types';
 
 /**
@@ -71,7 +71,7 @@ export class LinkError extends Error {
   }
 }
 
-export function protocolError(where: string, err: ZodError): LinkError {
+export function protocolError(where: string, err: z.core.$ZodError): LinkError {
   const issue = err.issues[0];
   const path = issue ? issue.path.map(String).join('.') : '';
   const msg = issue ? issue.message : 'invalid payload';

@@ -1,7 +1,7 @@
 import { http, HttpResponse, delay } from 'msw';
 import { setupServer } from 'msw/node';
 import { afterAll, afterEach, beforeAll, describe, expect, it, vi } from 'vitest';
-import { z } from 'zod';
+import { z } from 'zod/mini';
 import { describeError, LinkError } from './errors';
 import { controlledBody, installFakeFetch } from './fake-fetch.test-util';
 import { HttpClient } from './http';

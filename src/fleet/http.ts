@@ -1,4 +1,4 @@
-import type { z } from 'zod';
+import type { z } from 'zod/mini';
 import { commandScope, DEADLINE_GRACE_MS } from './commands';
 import { LinkError, protocolError, wordsOf } from './errors';
 import { CONSOLE_HEADERS, machineBase } from './origin';
@@ -103,7 +103,7 @@ export class HttpClient {
   }
 
   /** Request, parse JSON leniently (whatever the content type), validate with `schema`. */
-  async json<S extends z.ZodType>(opts: RequestOptions, schema: S): Promise<z.output<S>> {
+  async json<S extends z.ZodMiniType>(opts: RequestOptions, schema: S): Promise<z.output<S>> {
     const res = await this.raw(opts);
     const body = parseJsonLenient(res.text);
     if (body === NOT_JSON) {

@@ -1,5 +1,5 @@
 import { afterEach, beforeEach, describe, expect, it, vi } from 'vitest';
-import { z } from 'zod';
+import { z } from 'zod/mini';
 import { LinkError } from './errors';
 import { installFakeFetch, type FakeFetch } from './fake-fetch.test-util';
 import { HttpClient } from './http';

@@ -1,4 +1,4 @@
-import { z } from 'zod';
+import { z } from 'zod/mini';
 import type { Faults } from './sim';
 
 /**
@@ -31,7 +31,7 @@ export const simControlSchema = z.discriminatedUnion('type', [
     type: z.literal('choice'),
     value: z.number(),
     choices: z.array(z.number()),
-    unit: z.string().optional(),
+    unit: z.optional(z.string()),
   }),
 ]);
 export type SimControlView = z.infer<typeof simControlSchema>;
@@ -47,8 +47,8 @@ export type SimPanel = z.infer<typeof simPanelSchema>;
 /** `POST /api/sim/<id>`: one control; `value` for a toggle (boolean) or a choice (number). */
 export const simSetSchema = z.strictObject({
   group: z.enum(SIM_GROUPS),
-  id: z.string().min(1).max(100),
-  value: z.union([z.boolean(), z.number()]).optional(),
+  id: z.string().check(z.minLength(1), z.maxLength(100)),
+  value: z.optional(z.union([z.boolean(), z.number()])),
 });
 export type SimSet = z.infer<typeof simSetSchema>;
 

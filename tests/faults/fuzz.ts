@@ -2,7 +2,7 @@ import { setupServer } from 'msw/node';
 import { afterAll, afterEach, beforeAll, expect, vi } from 'vitest';
 import { readdirSync, readFileSync, statSync } from 'node:fs';
 import path from 'node:path';
-import type { z } from 'zod';
+import type { z } from 'zod/mini';
 import type { LinkTracker } from '../../src/fleet/contract';
 import { LinkError } from '../../src/fleet/errors';
 import type { MachineLog } from '../../src/fleet/log';
@@ -490,12 +490,12 @@ export class Findings {
  * Runs a zod schema on a mutated payload (JSON-parsed as the clients do) and checks the boundary:
  * no exception, no foreign prototype in the output. Returns the parse result.
  */
-export function parseChecked<S extends z.ZodType>(
+export function parseChecked<S extends z.ZodMiniType>(
   name: string,
   schema: S,
   m: Mutant,
   findings: Findings,
-): z.ZodSafeParseResult<z.output<S>> | null {
+): z.core.util.SafeParseResult<z.output<S>> | null {
   let input: unknown;
   try {
     input = JSON.parse(m.text);

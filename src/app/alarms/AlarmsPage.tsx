@@ -1,5 +1,5 @@
 import { useEffect, useMemo, useState } from 'react';
-import { z } from 'zod';
+import { z } from 'zod/mini';
 import { useStore } from 'zustand';
 import { FAMILY_LABELS } from '../../controllers';
 import { fleetStore } from '../../fleet/fleet';
@@ -168,7 +168,7 @@ function ThisTablet() {
 }
 
 const settingsSchema = z.object({
-  alarmWebhook: z.object({ set: z.boolean(), shown: z.string().nullable(), fromEnvironment: z.boolean() }),
+  alarmWebhook: z.object({ set: z.boolean(), shown: z.nullable(z.string()), fromEnvironment: z.boolean() }),
   webhook: z.object({ delivered: z.number(), failed: z.number(), dropped: z.number(), waiting: z.number() }),
 });
 type SettingsView = z.infer<typeof settingsSchema>;
@@ -234,7 +234,7 @@ function SendOn() {
     run(async () => {
       const { json } = await call('POST', '/api/settings/test-webhook');
       const r = z
-        .object({ ok: z.boolean(), status: z.number().optional(), error: z.string().optional() })
+        .object({ ok: z.boolean(), status: z.optional(z.number()), error: z.optional(z.string()) })
         .safeParse(json);
       if (!r.success) setMessage({ tone: 'bad', text: errorOf(json, 'The test could not be sent.') });
       else if (r.data.ok)

@@ -1,4 +1,4 @@
-import { z } from 'zod';
+import { z } from 'zod/mini';
 import { createStore } from 'zustand/vanilla';
 import { alarmRecordSchema, type AlarmRecord } from '../../fleet/alarm-record';
 import { authStore } from '../../fleet/auth';
@@ -16,7 +16,7 @@ export type { AlarmRecord };
 
 const answerSchema = z.union([
   z.object({ version: z.number(), unchanged: z.literal(true) }),
-  z.object({ version: z.number(), alarms: z.array(alarmRecordSchema).max(5000) }),
+  z.object({ version: z.number(), alarms: z.array(alarmRecordSchema).check(z.maxLength(5000)) }),
 ]);
 
 export interface AlarmFeedState {

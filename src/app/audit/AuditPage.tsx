@@ -1,5 +1,5 @@
 import { useCallback, useEffect, useState } from 'react';
-import { z } from 'zod';
+import { z } from 'zod/mini';
 import { useStore } from 'zustand';
 import { fleetStore } from '../../fleet/fleet';
 import { CONSOLE_HEADERS } from '../../fleet/origin';
@@ -27,18 +27,18 @@ const EntrySchema = z.looseObject({
   type: z.string(),
   result: z.string(),
   user: z.string(),
-  source: z.string().optional(),
-  machine: z.string().optional(),
-  method: z.string().optional(),
-  path: z.string().optional(),
-  commandId: z.string().optional(),
-  label: z.string().optional(),
-  status: z.number().optional(),
-  detail: z.string().optional(),
-  error: z.string().optional(),
-  role: z.string().optional(),
-  address: z.string().optional(),
-  onBehalfOf: z.string().optional(),
+  source: z.optional(z.string()),
+  machine: z.optional(z.string()),
+  method: z.optional(z.string()),
+  path: z.optional(z.string()),
+  commandId: z.optional(z.string()),
+  label: z.optional(z.string()),
+  status: z.optional(z.number()),
+  detail: z.optional(z.string()),
+  error: z.optional(z.string()),
+  role: z.optional(z.string()),
+  address: z.optional(z.string()),
+  onBehalfOf: z.optional(z.string()),
 });
 const AnswerSchema = z.object({ entries: z.array(EntrySchema), total: z.number() });
 export type AuditRow = z.infer<typeof EntrySchema>;

@@ -1,4 +1,4 @@
-import { z } from 'zod';
+import { z } from 'zod/mini';
 import { createStore } from 'zustand/vanilla';
 import { authStore } from '../../fleet/auth';
 import { ROLES } from '../../fleet/types';
@@ -13,20 +13,19 @@ import { CONSOLE_HEADERS } from '../../fleet/origin';
 const UserSchema = z.object({
   name: z.string(),
   role: z.enum(ROLES),
-  machines: z.array(z.string()).nullable(),
+  machines: z.nullable(z.array(z.string())),
 });
 
 export const SessionSchema = z.object({
   mode: z.enum(['open', 'secured']),
   /** Open mode on the network (SHOPDECK_OPEN=1), not only on this computer. */
-  openOnNetwork: z.boolean().optional(),
-  user: UserSchema.nullable(),
-  idleTimeoutS: z.number().nullable().optional(),
-  elevation: z
-    .object({ supervisor: z.string(), until: z.string(), operator: UserSchema })
-    .nullable()
-    .optional(),
-  expired: z.boolean().optional(),
+  openOnNetwork: z.optional(z.boolean()),
+  user: z.nullable(UserSchema),
+  idleTimeoutS: z.optional(z.nullable(z.number())),
+  elevation: z.optional(
+    z.nullable(z.object({ supervisor: z.string(), until: z.string(), operator: UserSchema })),
+  ),
+  expired: z.optional(z.boolean()),
 });
 
 export type SessionInfo = z.infer<typeof SessionSchema>;

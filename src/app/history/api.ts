@@ -1,4 +1,4 @@
-import { z } from 'zod';
+import { z } from 'zod/mini';
 import { CONSOLE_HEADERS } from '../../fleet/origin';
 
 /**
@@ -11,8 +11,8 @@ export type HistoryState = (typeof STATES)[number];
 export const OUTCOMES = ['finished', 'cancelled', 'failed', 'unknown'] as const;
 export type Outcome = (typeof OUTCOMES)[number];
 
-const time = z.number().finite();
-const secs = z.number().finite().nonnegative();
+const time = z.number();
+const secs = z.number().check(z.nonnegative());
 const state = z.enum(STATES);
 const outcome = z.enum(OUTCOMES);
 
@@ -20,33 +20,33 @@ export const jobSchema = z.object({
   id: z.number(),
   machine: z.string(),
   machineName: z.string(),
-  family: z.string().nullable(),
-  name: z.string().nullable(),
+  family: z.nullable(z.string()),
+  name: z.nullable(z.string()),
   startedAt: time,
-  endedAt: time.nullable(),
-  outcome: outcome.nullable(),
+  endedAt: z.nullable(time),
+  outcome: z.nullable(outcome),
   runningS: secs,
   pausedS: secs,
-  progress: z.number().min(0).max(1).nullable(),
-  startedBy: z.string().nullable(),
-  pausedBy: z.string().nullable(),
-  resumedBy: z.string().nullable(),
-  stoppedBy: z.string().nullable(),
-  endAlarm: z.string().nullable(),
+  progress: z.nullable(z.number().check(z.gte(0), z.lte(1))),
+  startedBy: z.nullable(z.string()),
+  pausedBy: z.nullable(z.string()),
+  resumedBy: z.nullable(z.string()),
+  stoppedBy: z.nullable(z.string()),
+  endAlarm: z.nullable(z.string()),
 });
 export type Job = z.infer<typeof jobSchema>;
 
 export const jobsSchema = z.object({
   jobs: z.array(jobSchema),
-  total: z.number().int().nonnegative(),
-  limit: z.number().int(),
-  offset: z.number().int(),
+  total: z.number().check(z.int(), z.nonnegative()),
+  limit: z.number().check(z.int()),
+  offset: z.number().check(z.int()),
 });
 export type JobsAnswer = z.infer<typeof jobsSchema>;
 
 export const intervalSchema = z.object({
   state,
-  alarm: z.string().nullable(),
+  alarm: z.nullable(z.string()),
   from: time,
   to: time,
   open: z.boolean(),
@@ -56,7 +56,7 @@ export type Interval = z.infer<typeof intervalSchema>;
 const machineRef = {
   machine: z.string(),
   machineName: z.string(),
-  family: z.string().nullable(),
+  family: z.nullable(z.string()),
 };
 
 export const statesSchema = z.object({
@@ -91,8 +91,8 @@ export const stopsSchema = z.object({
   to: time,
   stops: z.array(
     z.object({
-      alarm: z.string().nullable(),
-      count: z.number().int(),
+      alarm: z.nullable(z.string()),
+      count: z.number().check(z.int()),
       seconds: secs,
       machines: z.array(z.string()),
     }),
@@ -101,19 +101,19 @@ export const stopsSchema = z.object({
 export type StopsAnswer = z.infer<typeof stopsSchema>;
 
 const jobCountsSchema = z.object({
-  finished: z.number().int(),
-  cancelled: z.number().int(),
-  failed: z.number().int(),
-  unknown: z.number().int(),
-  inProgress: z.number().int(),
+  finished: z.number().check(z.int()),
+  cancelled: z.number().check(z.int()),
+  failed: z.number().check(z.int()),
+  unknown: z.number().check(z.int()),
+  inProgress: z.number().check(z.int()),
 });
 export type JobCounts = z.infer<typeof jobCountsSchema>;
 
 const HHMM = /^([01]\d|2[0-3]):[0-5]\d$/;
 export const shiftSchema = z.object({
   name: z.string(),
-  start: z.string().regex(HHMM),
-  end: z.string().regex(HHMM),
+  start: z.string().check(z.regex(HHMM)),
+  end: z.string().check(z.regex(HHMM)),
 });
 export type Shift = z.infer<typeof shiftSchema>;
 
@@ -128,14 +128,25 @@ export const shiftReportSchema = z.object({
 });
 export type ShiftReport = z.infer<typeof shiftReportSchema>;
 
-export const retentionSchema = z.object({ jobsDays: z.number().int(), statesDays: z.number().int() });
+export const retentionSchema = z.object({
+  jobsDays: z.number().check(z.int()),
+  statesDays: z.number().check(z.int()),
+});
 export type Retention = z.infer<typeof retentionSchema>;
 
 export const infoSchema = z.object({
-  sizeBytes: z.number().nonnegative(),
-  schemaVersion: z.number().int(),
-  oldest: z.object({ jobAt: time.nullable(), stateAt: time.nullable(), touchcutDay: z.string().nullable() }),
-  counts: z.object({ jobs: z.number().int(), states: z.number().int(), touchcutDays: z.number().int() }),
+  sizeBytes: z.number().check(z.nonnegative()),
+  schemaVersion: z.number().check(z.int()),
+  oldest: z.object({
+    jobAt: z.nullable(time),
+    stateAt: z.nullable(time),
+    touchcutDay: z.nullable(z.string()),
+  }),
+  counts: z.object({
+    jobs: z.number().check(z.int()),
+    states: z.number().check(z.int()),
+    touchcutDays: z.number().check(z.int()),
+  }),
   shifts: z.array(shiftSchema),
   retention: retentionSchema,
 });
@@ -152,7 +163,12 @@ function errorWords(json: unknown): string | null {
 }
 
 /** Checks an answer already read: the data, or an error in words. */
-export function parseAnswer<T>(schema: z.ZodType<T>, status: number, json: unknown, what: string): Result<T> {
+export function parseAnswer<T>(
+  schema: z.ZodMiniType<T>,
+  status: number,
+  json: unknown,
+  what: string,
+): Result<T> {
   if (status < 200 || status > 299)
     return { ok: false, status, error: errorWords(json) ?? `The console answered HTTP ${status}.` };
   const r = schema.safeParse(json);
@@ -162,7 +178,7 @@ export function parseAnswer<T>(schema: z.ZodType<T>, status: number, json: unkno
 
 /** A request to the console's own API, its answer checked against `schema`. */
 export async function request<T>(
-  schema: z.ZodType<T>,
+  schema: z.ZodMiniType<T>,
   path: string,
   what: string,
   init: { method?: 'GET' | 'PUT'; body?: unknown; signal?: AbortSignal } = {},

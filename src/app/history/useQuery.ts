@@ -1,5 +1,5 @@
 import { useEffect, useState } from 'react';
-import type { z } from 'zod';
+import type { z } from 'zod/mini';
 import { request } from './api';
 
 export interface Query<T> {
@@ -11,7 +11,12 @@ export interface Query<T> {
 }
 
 /** GETs `url` (null: nothing to ask) again whenever it or `tick` changes. */
-export function useQuery<T>(schema: z.ZodType<T>, url: string | null, what: string, tick: number): Query<T> {
+export function useQuery<T>(
+  schema: z.ZodMiniType<T>,
+  url: string | null,
+  what: string,
+  tick: number,
+): Query<T> {
   const [q, setQ] = useState<Query<T>>({ data: null, error: null, status: 0, loading: url !== null });
   useEffect(() => {
     if (url === null) return;

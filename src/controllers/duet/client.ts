@@ -1,4 +1,4 @@
-import { z } from 'zod';
+import { z } from 'zod/mini';
 import { LinkError } from '../../fleet/errors';
 import { HttpClient, preview, uploadWithProgress, type RawResponse } from '../../fleet/http';
 import type { RrfClient, UploadOptions } from './rrf-client';

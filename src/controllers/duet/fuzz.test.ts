@@ -1,5 +1,5 @@
 import { describe, expect, it, vi } from 'vitest';
-import type { z } from 'zod';
+import type { z } from 'zod/mini';
 import {
   FAKE_TIMERS,
   Findings,
@@ -110,7 +110,7 @@ describe('Duet: hostile payloads through the parsers', () => {
   it('wire schemas and the height map: no exception, no prototype from a payload', () => {
     const mut = new Mutator(SEED);
     const findings = new Findings();
-    const targets: Array<{ name: string; schema: z.ZodType; seeds: Seed[] }> = [
+    const targets: Array<{ name: string; schema: z.ZodMiniType; seeds: Seed[] }> = [
       { name: 'object model', schema: wire.objectModelSchema, seeds: MODELS },
       { name: 'connect', schema: wire.connectResponse, seeds: seeds.connect },
       { name: 'directory', schema: wire.directoryListing, seeds: seeds.dir },

@@ -1,4 +1,4 @@
-import { z } from 'zod';
+import { z } from 'zod/mini';
 import { LinkError } from '../../fleet/errors';
 import { uploadWithProgress, type HttpClient, type RawResponse, type UploadProgress } from '../../fleet/http';
 import { crc32Hex } from './crc32';
@@ -40,17 +40,17 @@ const MAX_PAGES = 200;
 export const REPLY_WAIT_MS = 30_000;
 
 const errAnswer = z.looseObject({ err: z.number() });
-const modelAnswer = z.looseObject({ result: z.unknown(), next: z.number().optional() });
+const modelAnswer = z.looseObject({ result: z.unknown(), next: z.optional(z.number()) });
 const gcodeAnswer = z.looseObject({ buff: z.number() });
 const fileListAnswer = z.looseObject({
-  err: z.number().optional().default(0),
-  files: z.array(z.unknown()).optional().default([]),
-  next: z.number().optional().default(0),
+  err: z._default(z.optional(z.number()), 0),
+  files: z._default(z.optional(z.array(z.unknown())), []),
+  next: z._default(z.optional(z.number()), 0),
 });
 const thumbnailAnswer = z.looseObject({
-  err: z.number().optional().default(0),
-  data: z.string().optional().default(''),
-  next: z.number().optional().default(0),
+  err: z._default(z.optional(z.number()), 0),
+  data: z._default(z.optional(z.string()), ''),
+  next: z._default(z.optional(z.number()), 0),
 });
 
 function failed(what: string, err: number): LinkError {

@@ -1,4 +1,4 @@
-import { z } from 'zod';
+import { z } from 'zod/mini';
 import { LinkError } from '../../fleet/errors';
 
 /**
@@ -8,9 +8,9 @@ import { LinkError } from '../../fleet/errors';
  */
 
 export const connectAnswer = z.looseObject({
-  err: z.number().optional(),
-  isEmulated: z.boolean().optional(),
-  sessionKey: z.union([z.string(), z.number()]).nullish(),
+  err: z.optional(z.number()),
+  isEmulated: z.optional(z.boolean()),
+  sessionKey: z.nullish(z.union([z.string(), z.number()])),
 });
 export type ConnectAnswer = z.infer<typeof connectAnswer>;
 

@@ -1,4 +1,5 @@
-import { z } from 'zod';
+import { z } from 'zod/mini';
+import { preprocess } from '../../fleet/schema';
 
 /**
  * Wire formats of DuetSoftwareFramework (SBC mode), as `../shared/protocols/duet-dsf-rest-api.txt`
@@ -15,31 +16,33 @@ import { z } from 'zod';
 // ---------------------------------------------------------------- helpers
 
 /** A number, also when sent as a numeric string. */
-export const num = z.preprocess(
+export const num = preprocess(
   (v) => (typeof v === 'string' && v.trim() !== '' && !Number.isNaN(Number(v)) ? Number(v) : v),
   z.number(),
 );
-export const numOrNull = num
-  .nullable()
-  .optional()
-  .transform((v) => v ?? null);
-export const strOrNull = z
-  .string()
-  .nullable()
-  .optional()
-  .transform((v) => v ?? null);
+export const numOrNull = z.pipe(
+  z.optional(z.nullable(num)),
+  z.transform((v) => v ?? null),
+);
+export const strOrNull = z.pipe(
+  z.optional(z.nullable(z.string())),
+  z.transform((v) => v ?? null),
+);
 
 /** An enum whose unknown values survive as "unknown (raw …)". */
 export function lenientEnum<const T extends readonly string[]>(values: T) {
-  return z.union([z.string(), z.number()]).transform((v): T[number] | `unknown (raw ${string})` => {
-    const s = String(v);
-    return (values as readonly string[]).includes(s) ? (s as T[number]) : `unknown (raw ${s})`;
-  });
+  return z.pipe(
+    z.union([z.string(), z.number()]),
+    z.transform((v): T[number] | `unknown (raw ${string})` => {
+      const s = String(v);
+      return (values as readonly string[]).includes(s) ? (s as T[number]) : `unknown (raw ${s})`;
+    }),
+  );
 }
 
 /** An array whose items may be `null` holes (heaters, tools, fans, endstops). */
-function holey<T extends z.ZodType>(item: T) {
-  return z.array(item.nullable()).default([]);
+function holey<T extends z.ZodMiniType>(item: T) {
+  return z._default(z.array(z.nullable(item)), []);
 }
 
 // ---------------------------------------------------------------- session
@@ -85,25 +88,24 @@ export const MACHINE_MODES = ['FFF', 'CNC', 'Laser'] as const;
  * axes to show jog controls for. `default`, `min`, `max`, `choices` depend on the mode.
  */
 export const messageBoxSchema = z.looseObject({
-  axisControls: num.optional().default(0),
-  cancelButton: z.boolean().optional().default(false),
-  choices: z.array(z.string()).nullable().optional().default(null),
-  default: z.union([z.number(), z.string()]).nullable().optional().default(null),
+  axisControls: z._default(z.optional(num), 0),
+  cancelButton: z._default(z.optional(z.boolean()), false),
+  choices: z._default(z.optional(z.nullable(z.array(z.string()))), null),
+  default: z._default(z.optional(z.nullable(z.union([z.number(), z.string()]))), null),
   max: numOrNull,
-  message: z.string().optional().default(''),
+  message: z._default(z.optional(z.string()), ''),
   min: numOrNull,
   mode: num,
   seq: num,
-  timeout: num.optional().default(0),
-  title: z.string().optional().default(''),
+  timeout: z._default(z.optional(num), 0),
+  title: z._default(z.optional(z.string()), ''),
 });
 export type MessageBox = z.infer<typeof messageBoxSchema>;
 
-const minMaxCurrent = z
-  .looseObject({ current: numOrNull, min: numOrNull, max: numOrNull })
-  .nullable()
-  .optional()
-  .default(null);
+const minMaxCurrent = z._default(
+  z.optional(z.nullable(z.looseObject({ current: numOrNull, min: numOrNull, max: numOrNull }))),
+  null,
+);
 
 export const boardSchema = z.looseObject({
   firmwareName: strOrNull,
@@ -117,20 +119,20 @@ export const boardSchema = z.looseObject({
 });
 
 export const heaterSchema = z.looseObject({
-  active: num.optional().default(0),
-  standby: num.optional().default(0),
-  current: num.optional().default(-273.15),
-  state: heaterState.optional().default('off'),
+  active: z._default(z.optional(num), 0),
+  standby: z._default(z.optional(num), 0),
+  current: z._default(z.optional(num), -273.15),
+  state: z._default(z.optional(heaterState), 'off'),
   max: numOrNull,
   min: numOrNull,
-  sensor: num.optional().default(-1),
+  sensor: z._default(z.optional(num), -1),
 });
 export type Heater = z.infer<typeof heaterSchema>;
 
 export const axisSchema = z.looseObject({
   letter: z.string(),
-  homed: z.boolean().optional().default(false),
-  visible: z.boolean().optional().default(true),
+  homed: z._default(z.optional(z.boolean()), false),
+  visible: z._default(z.optional(z.boolean()), true),
   userPosition: numOrNull,
   machinePosition: numOrNull,
   min: numOrNull,
@@ -139,12 +141,12 @@ export const axisSchema = z.looseObject({
 
 export const extruderSchema = z.looseObject({
   position: numOrNull,
-  filament: z.string().optional().default(''),
+  filament: z._default(z.optional(z.string()), ''),
   factor: numOrNull,
 });
 
 export const fanSchema = z.looseObject({
-  name: z.string().optional().default(''),
+  name: z._default(z.optional(z.string()), ''),
   actualValue: numOrNull,
   requestedValue: numOrNull,
   rpm: numOrNull,
@@ -152,29 +154,27 @@ export const fanSchema = z.looseObject({
 
 export const toolSchema = z.looseObject({
   number: num,
-  name: z.string().optional().default(''),
-  heaters: z.array(num).optional().default([]),
-  active: z.array(num).optional().default([]),
-  standby: z.array(num).optional().default([]),
-  extruders: z.array(num).optional().default([]),
-  fans: z.array(num).optional().default([]),
-  state: lenientEnum(['off', 'active', 'standby'] as const)
-    .optional()
-    .default('off'),
+  name: z._default(z.optional(z.string()), ''),
+  heaters: z._default(z.optional(z.array(num)), []),
+  active: z._default(z.optional(z.array(num)), []),
+  standby: z._default(z.optional(z.array(num)), []),
+  extruders: z._default(z.optional(z.array(num)), []),
+  fans: z._default(z.optional(z.array(num)), []),
+  state: z._default(z.optional(lenientEnum(['off', 'active', 'standby'] as const)), 'off'),
 });
 
 export const volumeSchema = z.looseObject({
   path: strOrNull,
   name: strOrNull,
-  mounted: z.boolean().optional().default(false),
+  mounted: z._default(z.optional(z.boolean()), false),
   freeSpace: numOrNull,
   capacity: numOrNull,
 });
 
 export const thumbnailSchema = z.looseObject({
   format: lenientEnum(['png', 'jpeg', 'qoi'] as const),
-  width: num.optional().default(0),
-  height: num.optional().default(0),
+  width: z._default(z.optional(num), 0),
+  height: z._default(z.optional(num), 0),
   offset: numOrNull,
   size: numOrNull,
   /** base64, only when asked for (`readThumbnailContent=true`) or in `job.file`. */
@@ -185,58 +185,57 @@ export type Thumbnail = z.infer<typeof thumbnailSchema>;
 /** ParsedFileInfo: `job.file` and `GET /machine/fileinfo/…`. When idle `job.file` has empty fields. */
 export const parsedFileInfoSchema = z.looseObject({
   fileName: strOrNull,
-  size: num.optional().default(0),
+  size: z._default(z.optional(num), 0),
   lastModified: strOrNull,
-  height: num.optional().default(0),
-  layerHeight: num.optional().default(0),
-  numLayers: num.optional().default(0),
+  height: z._default(z.optional(num), 0),
+  layerHeight: z._default(z.optional(num), 0),
+  numLayers: z._default(z.optional(num), 0),
   printTime: numOrNull,
   simulatedTime: numOrNull,
   generatedBy: strOrNull,
-  filament: z.array(num).optional().default([]),
-  thumbnails: z.array(thumbnailSchema).optional().default([]),
+  filament: z._default(z.optional(z.array(num)), []),
+  thumbnails: z._default(z.optional(z.array(thumbnailSchema)), []),
 });
 export type ParsedFileInfo = z.infer<typeof parsedFileInfoSchema>;
 
 export const jobSchema = z.looseObject({
-  file: parsedFileInfoSchema.nullable().optional().default(null),
+  file: z._default(z.optional(z.nullable(parsedFileInfoSchema)), null),
   filePosition: numOrNull,
   duration: numOrNull,
   layer: numOrNull,
   layerTime: numOrNull,
   lastFileName: strOrNull,
-  lastFileCancelled: z.boolean().optional().default(false),
-  lastFileAborted: z.boolean().optional().default(false),
-  lastFileSimulated: z.boolean().optional().default(false),
+  lastFileCancelled: z._default(z.optional(z.boolean()), false),
+  lastFileAborted: z._default(z.optional(z.boolean()), false),
+  lastFileSimulated: z._default(z.optional(z.boolean()), false),
   lastDuration: numOrNull,
   pauseDuration: numOrNull,
   warmUpDuration: numOrNull,
-  timesLeft: z
-    .looseObject({ file: numOrNull, filament: numOrNull, slicer: numOrNull })
-    .nullable()
-    .optional()
-    .default(null),
+  timesLeft: z._default(
+    z.optional(z.nullable(z.looseObject({ file: numOrNull, filament: numOrNull, slicer: numOrNull }))),
+    null,
+  ),
 });
 
 export const pluginSchema = z.looseObject({
-  id: z.string().optional().default(''),
-  name: z.string().optional().default(''),
-  author: z.string().optional().default(''),
-  version: z.string().optional().default(''),
+  id: z._default(z.optional(z.string()), ''),
+  name: z._default(z.optional(z.string()), ''),
+  author: z._default(z.optional(z.string()), ''),
+  version: z._default(z.optional(z.string()), ''),
   homepage: strOrNull,
   license: strOrNull,
   /** pid > 0: running on the SBC; -1 not running (or no SBC part). */
-  pid: num.optional().default(-1),
+  pid: z._default(z.optional(num), -1),
   sbcExecutable: strOrNull,
-  sbcRequired: z.boolean().optional().default(false),
+  sbcRequired: z._default(z.optional(z.boolean()), false),
 });
 export type Plugin = z.infer<typeof pluginSchema>;
 
 /** `messages[]` entries: `type` 0 info (generic), 1 warning, 2 error. */
 export const messageSchema = z.looseObject({
-  content: z.string().optional().default(''),
+  content: z._default(z.optional(z.string()), ''),
   time: strOrNull,
-  type: num.optional().default(0),
+  type: z._default(z.optional(num), 0),
 });
 export type DuetMessage = z.infer<typeof messageSchema>;
 
@@ -246,18 +245,19 @@ export function messageLevel(type: number): 'info' | 'warning' | 'error' {
 
 export const objectModelSchema = z.looseObject({
   boards: holey(boardSchema),
-  directories: z
-    .looseObject({
-      filaments: z.string().optional().default('0:/filaments'),
-      firmware: z.string().optional().default('0:/firmware'),
-      gCodes: z.string().optional().default('0:/gcodes'),
-      macros: z.string().optional().default('0:/macros'),
-      menu: z.string().optional().default('0:/menu'),
-      system: z.string().optional().default('0:/sys'),
-      web: z.string().optional().default('0:/www'),
-    })
-    .optional()
-    .transform(
+  directories: z.pipe(
+    z.optional(
+      z.looseObject({
+        filaments: z._default(z.optional(z.string()), '0:/filaments'),
+        firmware: z._default(z.optional(z.string()), '0:/firmware'),
+        gCodes: z._default(z.optional(z.string()), '0:/gcodes'),
+        macros: z._default(z.optional(z.string()), '0:/macros'),
+        menu: z._default(z.optional(z.string()), '0:/menu'),
+        system: z._default(z.optional(z.string()), '0:/sys'),
+        web: z._default(z.optional(z.string()), '0:/www'),
+      }),
+    ),
+    z.transform(
       (d) =>
         d ?? {
           filaments: '0:/filaments',
@@ -269,58 +269,70 @@ export const objectModelSchema = z.looseObject({
           web: '0:/www',
         },
     ),
+  ),
   fans: holey(fanSchema),
-  heat: z
-    .looseObject({
-      heaters: holey(heaterSchema),
-      /** -1 = no heater at that index */
-      bedHeaters: z.array(num).optional().default([]),
-      chamberHeaters: z.array(num).optional().default([]),
-    })
-    .optional()
-    .transform((h) => h ?? { heaters: [], bedHeaters: [], chamberHeaters: [] }),
-  job: jobSchema.optional().transform((j) => j ?? jobSchema.parse({})),
-  move: z
-    .looseObject({
-      axes: holey(axisSchema),
-      extruders: holey(extruderSchema),
-      compensation: z
-        .looseObject({ file: strOrNull, type: z.string().optional().default('none') })
-        .nullable()
-        .optional()
-        .default(null),
-      speedFactor: numOrNull,
-      kinematics: z
-        .looseObject({ name: z.string().optional().default('') })
-        .nullable()
-        .optional()
-        .default(null),
-    })
-    .optional()
-    .transform(
+  heat: z.pipe(
+    z.optional(
+      z.looseObject({
+        heaters: holey(heaterSchema),
+        /** -1 = no heater at that index */
+        bedHeaters: z._default(z.optional(z.array(num)), []),
+        chamberHeaters: z._default(z.optional(z.array(num)), []),
+      }),
+    ),
+    z.transform((h) => h ?? { heaters: [], bedHeaters: [], chamberHeaters: [] }),
+  ),
+  job: z.pipe(
+    z.optional(jobSchema),
+    z.transform((j) => j ?? jobSchema.parse({})),
+  ),
+  move: z.pipe(
+    z.optional(
+      z.looseObject({
+        axes: holey(axisSchema),
+        extruders: holey(extruderSchema),
+        compensation: z._default(
+          z.optional(
+            z.nullable(z.looseObject({ file: strOrNull, type: z._default(z.optional(z.string()), 'none') })),
+          ),
+          null,
+        ),
+        speedFactor: numOrNull,
+        kinematics: z._default(
+          z.optional(z.nullable(z.looseObject({ name: z._default(z.optional(z.string()), '') }))),
+          null,
+        ),
+      }),
+    ),
+    z.transform(
       (m) => m ?? { axes: [], extruders: [], compensation: null, speedFactor: null, kinematics: null },
     ),
-  network: z.looseObject({ name: strOrNull, hostname: strOrNull }).nullable().optional().default(null),
-  plugins: z
-    .record(z.string(), pluginSchema.nullable())
-    .nullable()
-    .optional()
-    .transform((p) => {
+  ),
+  network: z._default(z.optional(z.nullable(z.looseObject({ name: strOrNull, hostname: strOrNull }))), null),
+  plugins: z.pipe(
+    z.optional(z.nullable(z.record(z.string(), z.nullable(pluginSchema)))),
+    z.transform((p) => {
       const out: Record<string, Plugin> = {};
       for (const [k, v] of Object.entries(p ?? {})) if (v) out[k] = v;
       return out;
     }),
-  sbc: z
-    .looseObject({ dsf: z.looseObject({ version: strOrNull }).nullable().optional().default(null) })
-    .nullable()
-    .optional()
-    .default(null),
+  ),
+  sbc: z._default(
+    z.optional(
+      z.nullable(
+        z.looseObject({
+          dsf: z._default(z.optional(z.nullable(z.looseObject({ version: strOrNull }))), null),
+        }),
+      ),
+    ),
+    null,
+  ),
   state: z.looseObject({
     status: machineStatus,
-    machineMode: lenientEnum(MACHINE_MODES).optional().default('FFF'),
-    messageBox: messageBoxSchema.nullable().optional().default(null),
-    currentTool: num.optional().default(-1),
-    displayMessage: z.string().nullable().optional().default(''),
+    machineMode: z._default(z.optional(lenientEnum(MACHINE_MODES)), 'FFF'),
+    messageBox: z._default(z.optional(z.nullable(messageBoxSchema)), null),
+    currentTool: z._default(z.optional(num), -1),
+    displayMessage: z._default(z.optional(z.nullable(z.string())), ''),
     upTime: numOrNull,
     time: strOrNull,
   }),

@@ -1,5 +1,5 @@
 import { describe, expect, it, vi } from 'vitest';
-import type { z } from 'zod';
+import type { z } from 'zod/mini';
 import {
   FAKE_TIMERS,
   Findings,
@@ -142,7 +142,7 @@ function json(text: string): unknown {
 const byName = (re: RegExp) => FIXTURES.filter((f) => re.test(f.name));
 
 describe('g2core: hostile payloads through the parsers', () => {
-  function targets(): Array<{ name: string; schema: z.ZodType; seeds: Seed[] }> {
+  function targets(): Array<{ name: string; schema: z.ZodMiniType; seeds: Seed[] }> {
     return [
       {
         name: 'version',

@@ -1,4 +1,5 @@
-import { z } from 'zod';
+import { z } from 'zod/mini';
+import { preprocess } from '../../fleet/schema';
 
 /**
  * zod schemas of every g2core REST payload (../shared/protocols/g2core-rest-design.txt, a
@@ -11,7 +12,7 @@ import { z } from 'zod';
  */
 
 /** A number, or a string that is one ("12.5"). Anything else fails. */
-export const lenientNumber = z.preprocess((v) => {
+export const lenientNumber = preprocess((v) => {
   if (typeof v === 'string' && v.trim() !== '' && Number.isFinite(Number(v))) return Number(v);
   return v;
 }, z.number());
@@ -46,18 +47,19 @@ export function unwrapEnvelope(body: unknown, inner: 'value' | 'any' = 'any'): u
 
 export const statusObject = z.looseObject({
   code: lenientNumber,
-  description: z.string().optional().catch(undefined),
-  additional_description: z.string().nullish().catch(undefined),
+  description: z.catch(z.optional(z.string()), undefined),
+  additional_description: z.catch(z.nullish(z.string()), undefined),
 });
 export type StatusObject = z.infer<typeof statusObject>;
 
 export const errorBody = z.union([
   z.looseObject({ status: statusObject }),
-  z
-    .looseObject({ err: z.looseObject({ code: lenientNumber, msg: z.string().optional() }) })
-    .transform((e) => ({
+  z.pipe(
+    z.looseObject({ err: z.looseObject({ code: lenientNumber, msg: z.optional(z.string()) }) }),
+    z.transform((e) => ({
       status: { code: e.err.code, description: e.err.msg, additional_description: undefined },
     })),
+  ),
 ]);
 
 // ---------------------------------------------------------------------------------------------
@@ -65,42 +67,45 @@ export const errorBody = z.union([
 // hp/hv are numbers on 100.xx and strings ("ArduinoDue","na") on 101.03 (startup fixture).
 
 export const versionInfo = z.looseObject({
-  fv: lenientNumber.optional().catch(undefined),
-  fb: lenientNumber.optional().catch(undefined),
-  fbs: z.string().optional().catch(undefined),
-  fbc: z.string().optional().catch(undefined),
-  hp: z.union([z.number(), z.string()]).optional().catch(undefined),
-  hv: z.union([z.number(), z.string()]).optional().catch(undefined),
-  id: z.string().optional().catch(undefined),
-  msg: z.string().optional().catch(undefined),
+  fv: z.catch(z.optional(lenientNumber), undefined),
+  fb: z.catch(z.optional(lenientNumber), undefined),
+  fbs: z.catch(z.optional(z.string()), undefined),
+  fbc: z.catch(z.optional(z.string()), undefined),
+  hp: z.catch(z.optional(z.union([z.number(), z.string()])), undefined),
+  hv: z.catch(z.optional(z.union([z.number(), z.string()])), undefined),
+  id: z.catch(z.optional(z.string()), undefined),
+  msg: z.catch(z.optional(z.string()), undefined),
 });
 export type VersionInfo = z.infer<typeof versionInfo>;
 
-export const versionResponse = z.preprocess((b) => unwrapEnvelope(b), versionInfo);
+export const versionResponse = preprocess((b) => unwrapEnvelope(b), versionInfo);
 
 // ---------------------------------------------------------------------------------------------
 // Status reports: GET /status_report[?filter=…] — a flat object of SR keys (posx, vel, stat …).
 
 export type SrValues = Record<string, Scalar>;
 
-const srRecord = z.record(z.string(), scalar).transform((r) => {
-  const out: SrValues = {};
-  for (const [k, v] of Object.entries(r)) {
-    // Numbers sent as strings are coerced; other strings kept as they are.
-    out[k] = typeof v === 'string' && v.trim() !== '' && Number.isFinite(Number(v)) ? Number(v) : v;
-  }
-  return out;
-});
+const srRecord = z.pipe(
+  z.record(z.string(), scalar),
+  z.transform((r) => {
+    const out: SrValues = {};
+    for (const [k, v] of Object.entries(r)) {
+      // Numbers sent as strings are coerced; other strings kept as they are.
+      out[k] = typeof v === 'string' && v.trim() !== '' && Number.isFinite(Number(v)) ? Number(v) : v;
+    }
+    return out;
+  }),
+);
 
-export const statusReportResponse = z.preprocess((b) => unwrapEnvelope(b), srRecord);
+export const statusReportResponse = preprocess((b) => unwrapEnvelope(b), srRecord);
 
 // ---------------------------------------------------------------------------------------------
 // Machine resource: GET /machine, GET|PUT /machine/{key} — {"value": …}.
 
 export const machineValueResponse = z.looseObject({
   value: z.unknown(),
-  code: lenientNumber.optional().catch(undefined),
-  description: z.string().optional().catch(undefined),
+  code: z.catch(z.optional(lenientNumber), undefined),
+  description: z.catch(z.optional(z.string()), undefined),
 });
 
 /** A settings group: {"am":1,"vm":40000,…}. Values are scalars; nested objects are not expected. */
@@ -141,44 +146,51 @@ export function valueForKey(value: unknown, group: string | null, key: string): 
 // Operations. POST /operation → 201 with the id (the design shows a bare `42`). GET
 // /operation/{id} → {"opstate":"pend|run|done|error","optype","value","line","error"?}.
 
-export const createdId = z
-  .union([
+export const createdId = z.pipe(
+  z.union([
     z.number(),
-    z.string().trim().min(1),
-    z.looseObject({ id: z.union([z.number(), z.string().min(1)]) }).transform((o) => o.id),
-    z.looseObject({ value: z.union([z.number(), z.string().min(1)]) }).transform((o) => o.value),
-  ])
-  .transform((id) => String(id));
+    z.string().check(z.trim(), z.minLength(1)),
+    z.pipe(
+      z.looseObject({ id: z.union([z.number(), z.string().check(z.minLength(1))]) }),
+      z.transform((o) => o.id),
+    ),
+    z.pipe(
+      z.looseObject({ value: z.union([z.number(), z.string().check(z.minLength(1))]) }),
+      z.transform((o) => o.value),
+    ),
+  ]),
+  z.transform((id) => String(id)),
+);
 
 export const OPSTATES = ['pend', 'run', 'pause', 'done', 'error'] as const;
 export type OpState = (typeof OPSTATES)[number] | 'unknown';
 
 /** opstate: lower case in the design text, upper case in its example enums ("PEND"); both accepted. */
-export const opState = z.string().transform((s): { state: OpState; raw: string } => {
-  const l = s.trim().toLowerCase();
-  return { state: (OPSTATES as readonly string[]).includes(l) ? (l as OpState) : 'unknown', raw: s };
-});
+export const opState = z.pipe(
+  z.string(),
+  z.transform((s): { state: OpState; raw: string } => {
+    const l = s.trim().toLowerCase();
+    return { state: (OPSTATES as readonly string[]).includes(l) ? (l as OpState) : 'unknown', raw: s };
+  }),
+);
 
 export const operation = z.looseObject({
-  id: z.union([z.number(), z.string()]).optional().catch(undefined),
+  id: z.catch(z.optional(z.union([z.number(), z.string()])), undefined),
   opstate: opState,
-  optype: z.string().optional().catch(undefined),
-  value: z
-    .union([z.string(), z.array(z.string()), z.number()])
-    .optional()
-    .catch(undefined),
+  optype: z.catch(z.optional(z.string()), undefined),
+  value: z.catch(z.optional(z.union([z.string(), z.array(z.string()), z.number()])), undefined),
   /** Lines of the operation finished so far. */
-  line: lenientNumber.optional().catch(undefined),
-  error: statusObject.nullish().catch(undefined),
+  line: z.catch(z.optional(lenientNumber), undefined),
+  error: z.catch(z.nullish(statusObject), undefined),
   /**
    * Settled by the console: replies of the operation's JSON lines, in order, as the firmware's
    * `r` objects (`[{"xvm":40000}]`). G-code lines have no reply beyond the operation state.
    */
-  r: z.array(z.record(z.string(), z.unknown())).optional().catch(undefined),
+  r: z.catch(z.optional(z.array(z.record(z.string(), z.unknown()))), undefined),
 });
 export type Operation = z.infer<typeof operation>;
 
-export const operationResponse = z.preprocess((b) => {
+export const operationResponse = preprocess((b) => {
   // Tolerate an envelope around the operation, but an operation's own `value` holds its lines.
   if (isRecord(b) && !('opstate' in b) && isRecord(b.value) && 'opstate' in b.value) return b.value;
   return b;
@@ -188,7 +200,7 @@ export const operationResponse = z.preprocess((b) => {
  * GET /operation (settled by the console, see client.ts): the operations the server knows,
  * unfinished first. Bare array or `{"value":[…]}`.
  */
-export const operationListResponse = z.preprocess((b) => {
+export const operationListResponse = preprocess((b) => {
   if (isRecord(b) && Array.isArray(b.value)) return b.value;
   return b;
 }, z.array(operation));
@@ -201,47 +213,57 @@ export const JOB_STATES = ['queued', 'running', 'paused', 'done', 'killed', 'err
 export type JobState = (typeof JOB_STATES)[number] | 'unknown';
 
 /** Times as epoch ms or ISO text. */
-const timeMs = z
-  .union([z.number(), z.string()])
-  .nullish()
-  .transform((v) => {
-    if (v === null || v === undefined || v === '') return null;
-    if (typeof v === 'number') return v;
-    const n = Number(v);
-    if (Number.isFinite(n)) return n;
-    const t = Date.parse(v);
-    return Number.isFinite(t) ? t : null;
-  })
-  .catch(null);
+const timeMs = z.catch(
+  z.pipe(
+    z.nullish(z.union([z.number(), z.string()])),
+    z.transform((v) => {
+      if (v === null || v === undefined || v === '') return null;
+      if (typeof v === 'number') return v;
+      const n = Number(v);
+      if (Number.isFinite(n)) return n;
+      const t = Date.parse(v);
+      return Number.isFinite(t) ? t : null;
+    }),
+  ),
+  null,
+);
 
 export const job = z.looseObject({
-  id: z.union([z.number(), z.string().min(1)]).transform((v) => String(v)),
-  name: z.string().nullish().catch(null),
-  state: z.string().transform((s): { state: JobState; raw: string } => {
-    const l = s.trim().toLowerCase();
-    return { state: (JOB_STATES as readonly string[]).includes(l) ? (l as JobState) : 'unknown', raw: s };
-  }),
-  lines: lenientNumber.nullish().catch(null),
-  done: lenientNumber.nullish().catch(null),
+  id: z.pipe(
+    z.union([z.number(), z.string().check(z.minLength(1))]),
+    z.transform((v) => String(v)),
+  ),
+  name: z.catch(z.nullish(z.string()), null),
+  state: z.pipe(
+    z.string(),
+    z.transform((s): { state: JobState; raw: string } => {
+      const l = s.trim().toLowerCase();
+      return { state: (JOB_STATES as readonly string[]).includes(l) ? (l as JobState) : 'unknown', raw: s };
+    }),
+  ),
+  lines: z.catch(z.nullish(lenientNumber), null),
+  done: z.catch(z.nullish(lenientNumber), null),
   started: timeMs,
   finished: timeMs,
-  operation: z
-    .union([z.number(), z.string()])
-    .nullish()
-    .transform((v) => (v === null || v === undefined ? null : String(v)))
-    .catch(null),
-  position: lenientNumber.nullish().catch(null),
-  error: statusObject.nullish().catch(null),
+  operation: z.catch(
+    z.pipe(
+      z.nullish(z.union([z.number(), z.string()])),
+      z.transform((v) => (v === null || v === undefined ? null : String(v))),
+    ),
+    null,
+  ),
+  position: z.catch(z.nullish(lenientNumber), null),
+  error: z.catch(z.nullish(statusObject), null),
 });
 export type Job = z.infer<typeof job>;
 
-export const jobResponse = z.preprocess((b) => {
+export const jobResponse = preprocess((b) => {
   if (isRecord(b) && !('state' in b) && isRecord(b.value)) return b.value;
   return b;
 }, job);
 
 /** GET /job → [job…] (or {"value":[…]} / {"jobs":[…]}). */
-export const jobListResponse = z.preprocess((b) => {
+export const jobListResponse = preprocess((b) => {
   if (isRecord(b) && Array.isArray(b.value)) return b.value;
   if (isRecord(b) && Array.isArray(b.jobs)) return b.jobs;
   return b;
@@ -252,12 +274,13 @@ export const jobListResponse = z.preprocess((b) => {
  * (exception-report-kill-job-101.03.json). A REST server may pass it through as an operation's
  * error; the console reads `st` as the status code.
  */
-export const exceptionReport = z
-  .looseObject({
+export const exceptionReport = z.pipe(
+  z.looseObject({
     er: z.looseObject({
-      fb: lenientNumber.optional().catch(undefined),
+      fb: z.catch(z.optional(lenientNumber), undefined),
       st: lenientNumber,
-      msg: z.string().optional(),
+      msg: z.optional(z.string()),
     }),
-  })
-  .transform((e) => ({ code: e.er.st, description: e.er.msg, additional_description: undefined }));
+  }),
+  z.transform((e) => ({ code: e.er.st, description: e.er.msg, additional_description: undefined })),
+);

@@ -1,5 +1,5 @@
 import { describe, expect, it, vi } from 'vitest';
-import type { z } from 'zod';
+import type { z } from 'zod/mini';
 import {
   FAKE_TIMERS,
   Findings,
@@ -149,7 +149,7 @@ describe('Prunt: hostile payloads through the parsers', () => {
   it('every wire schema and the vendor error parser: no exception, no prototype from a payload', () => {
     const mut = new Mutator(SEED);
     const findings = new Findings();
-    const targets: Array<{ name: string; schema: z.ZodType; seeds: Seed[] }> = [
+    const targets: Array<{ name: string; schema: z.ZodMiniType; seeds: Seed[] }> = [
       {
         name: 'config values',
         schema: wire.configValuesSchema,
@@ -265,7 +265,7 @@ describe('Prunt: hostile payloads through the parsers', () => {
 
   it('a payload nested deeper than the stack is refused as a protocol error, not thrown', () => {
     const findings = new Findings();
-    const schemas: Array<[string, z.ZodType]> = [
+    const schemas: Array<[string, z.ZodMiniType]> = [
       ['config schema', wire.configSchemaSchema],
       ['config values', wire.configValuesSchema],
       ['status schema', wire.statusSchemaSchema],

@@ -1,4 +1,5 @@
-import { z } from 'zod';
+import { z } from 'zod/mini';
+import { addIssue } from '../../fleet/schema';
 
 /**
  * Every payload of the Prunt web API (../shared/protocols/prunt-web-api.txt), lenient: numbers may
@@ -35,14 +36,16 @@ export function nestsDeeper(v: unknown, limit: number): boolean {
 }
 
 /** A top-level payload schema: too deep a payload is refused (an issue), never parsed. */
-function bounded<S extends z.ZodType>(schema: S) {
-  return z
-    .unknown()
-    .superRefine((v, ctx) => {
-      if (nestsDeeper(v, MAX_DEPTH))
-        ctx.addIssue({ code: 'custom', message: `nested deeper than ${MAX_DEPTH} levels` });
-    })
-    .pipe(schema);
+function bounded<S extends z.ZodMiniType>(schema: S) {
+  return z.pipe(
+    z.unknown().check(
+      z.superRefine((v, ctx) => {
+        if (nestsDeeper(v, MAX_DEPTH))
+          ctx.addIssue({ code: 'custom', message: `nested deeper than ${MAX_DEPTH} levels` });
+      }),
+    ),
+    schema,
+  );
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -73,23 +76,23 @@ export interface WireNode {
   Present_When?: WirePresentWhen;
 }
 
-export const wireNodeSchema: z.ZodType<WireNode> = z.lazy(() =>
+export const wireNodeSchema: z.ZodMiniType<WireNode> = z.lazy(() =>
   z.looseObject({
     Kind: z.string(),
     // The document says every node has a Description; a missing one is no reason to refuse the form.
-    Description: z.string().catch(''),
-    Children: z.record(z.string(), wireNodeSchema).optional(),
-    Min: num.optional(),
-    Max: num.optional(),
+    Description: z.catch(z.string(), ''),
+    Children: z.optional(z.record(z.string(), wireNodeSchema)),
+    Min: z.optional(num),
+    Max: z.optional(num),
     // Flat API writes Unit with Unbounded_String'Image: a quoted string that arrives as a plain string.
-    Unit: z.string().optional(),
-    Options: z.array(z.coerce.string()).optional(),
-    Default: z.unknown().optional(),
-    Default_Numerator: num.optional(),
-    Default_Denominator: num.optional(),
-    Tabbed: z.boolean().optional(),
-    Experimental: z.boolean().optional(),
-    Present_When: presentWhenSchema.optional(),
+    Unit: z.optional(z.string()),
+    Options: z.optional(z.array(z.coerce.string())),
+    Default: z.optional(z.unknown()),
+    Default_Numerator: z.optional(num),
+    Default_Denominator: z.optional(num),
+    Tabbed: z.optional(z.boolean()),
+    Experimental: z.optional(z.boolean()),
+    Present_When: z.optional(presentWhenSchema),
   }),
 );
 
@@ -112,22 +115,26 @@ export type ConfigSchemaWire =
   { api: 'module'; schema: ModuleConfigSchema } | { api: 'flat'; schema: FlatConfigSchema };
 
 /** `GET /config/schema`: the generation is detected from the shape. */
-export const configSchemaSchema = z.unknown().transform((v, ctx): ConfigSchemaWire => {
-  if (nestsDeeper(v, MAX_DEPTH)) {
-    ctx.addIssue({ code: 'custom', message: `nested deeper than ${MAX_DEPTH} levels` });
+export const configSchemaSchema = z.pipe(
+  z.unknown(),
+  z.transform((v, ctx): ConfigSchemaWire => {
+    if (nestsDeeper(v, MAX_DEPTH)) {
+      addIssue(ctx, { code: 'custom', message: `nested deeper than ${MAX_DEPTH} levels` });
+      return z.NEVER;
+    }
+    if (v && typeof v === 'object' && !Array.isArray(v) && 'Prunt config version' in v) {
+      const r = moduleSchemaSchema.safeParse(v);
+      if (r.success) return { api: 'module', schema: r.data };
+      for (const i of r.error.issues)
+        addIssue(ctx, { ...i, code: 'custom', message: i.message, path: i.path });
+      return z.NEVER;
+    }
+    const r = flatSchemaSchema.safeParse(v);
+    if (r.success) return { api: 'flat', schema: r.data };
+    for (const i of r.error.issues) addIssue(ctx, { code: 'custom', message: i.message, path: i.path });
     return z.NEVER;
-  }
-  if (v && typeof v === 'object' && !Array.isArray(v) && 'Prunt config version' in v) {
-    const r = moduleSchemaSchema.safeParse(v);
-    if (r.success) return { api: 'module', schema: r.data };
-    for (const i of r.error.issues) ctx.addIssue({ ...i, code: 'custom', message: i.message, path: i.path });
-    return z.NEVER;
-  }
-  const r = flatSchemaSchema.safeParse(v);
-  if (r.success) return { api: 'flat', schema: r.data };
-  for (const i of r.error.issues) ctx.addIssue({ code: 'custom', message: i.message, path: i.path });
-  return z.NEVER;
-});
+  }),
+);
 
 // ---------------------------------------------------------------------------------------------
 // Config values
@@ -140,9 +147,9 @@ export const flatValueSchema = z.union([z.boolean(), z.number(), z.string()]);
  * missing; an error we cannot place is still shown (above the form).
  */
 export const configErrorSchema = z.looseObject({
-  Key: z.string().optional(),
-  Path: z.array(z.coerce.string()).optional(),
-  Message: z.coerce.string().catch('(no message)'),
+  Key: z.optional(z.string()),
+  Path: z.optional(z.array(z.coerce.string())),
+  Message: z.catch(z.coerce.string(), '(no message)'),
 });
 export type ConfigErrorWire = z.infer<typeof configErrorSchema>;
 
@@ -150,7 +157,7 @@ export type ConfigErrorWire = z.infer<typeof configErrorSchema>;
 export const configValuesSchema = bounded(
   z.looseObject({
     Values: z.record(z.string(), z.unknown()),
-    Errors: z.array(configErrorSchema).catch([]).default([]),
+    Errors: z._default(z.catch(z.array(configErrorSchema), []), []),
   }),
 );
 export type ConfigValuesWire = z.infer<typeof configValuesSchema>;
@@ -167,13 +174,16 @@ export const STATUS_KINDS = ['Real', 'Integer', 'Boolean', 'String'] as const;
 
 /** Module API status schema node; an unknown Kind maps to "unknown (raw …)". */
 export const statusNodeSchema = z.looseObject({
-  Kind: z
-    .string()
-    .transform((k) => ((STATUS_KINDS as readonly string[]).includes(k) ? k : `unknown (raw ${k})`))
-    .catch('unknown (raw missing)'),
-  Unit: z.string().catch(''),
-  Description: z.string().catch(''),
-  Condition: z.string().catch(''),
+  Kind: z.catch(
+    z.pipe(
+      z.string(),
+      z.transform((k) => ((STATUS_KINDS as readonly string[]).includes(k) ? k : `unknown (raw ${k})`)),
+    ),
+    'unknown (raw missing)',
+  ),
+  Unit: z.catch(z.string(), ''),
+  Description: z.catch(z.string(), ''),
+  Condition: z.catch(z.string(), ''),
 });
 
 export const moduleStatusSchemaSchema = z.record(
@@ -187,75 +197,82 @@ export type StatusSchemaWire =
   | { api: 'module'; schema: z.infer<typeof moduleStatusSchemaSchema> }
   | { api: 'flat'; schema: z.infer<typeof flatStatusSchemaSchema> };
 
-export const statusSchemaSchema = z.unknown().transform((v, ctx): StatusSchemaWire => {
-  if (nestsDeeper(v, MAX_DEPTH)) {
-    ctx.addIssue({ code: 'custom', message: `nested deeper than ${MAX_DEPTH} levels` });
+export const statusSchemaSchema = z.pipe(
+  z.unknown(),
+  z.transform((v, ctx): StatusSchemaWire => {
+    if (nestsDeeper(v, MAX_DEPTH)) {
+      addIssue(ctx, { code: 'custom', message: `nested deeper than ${MAX_DEPTH} levels` });
+      return z.NEVER;
+    }
+    const flat = flatStatusSchemaSchema.safeParse(v);
+    if (flat.success) return { api: 'flat', schema: flat.data };
+    const mod = moduleStatusSchemaSchema.safeParse(v);
+    if (mod.success) return { api: 'module', schema: mod.data };
+    for (const i of mod.error.issues) addIssue(ctx, { code: 'custom', message: i.message, path: i.path });
     return z.NEVER;
-  }
-  const flat = flatStatusSchemaSchema.safeParse(v);
-  if (flat.success) return { api: 'flat', schema: flat.data };
-  const mod = moduleStatusSchemaSchema.safeParse(v);
-  if (mod.success) return { api: 'module', schema: mod.data };
-  for (const i of mod.error.issues) ctx.addIssue({ code: 'custom', message: i.message, path: i.path });
-  return z.NEVER;
-});
+  }),
+);
 
 export const statusScalarSchema = z.union([z.number(), z.boolean(), z.string(), z.null()]);
 
 /** Module API status values: module → group → name → value. */
 export const moduleStatusValuesSchema = z.record(
   z.string(),
-  z.record(z.string(), z.record(z.string(), statusScalarSchema.catch(null))),
+  z.record(z.string(), z.record(z.string(), z.catch(statusScalarSchema, null))),
 );
 export type ModuleStatusValues = z.infer<typeof moduleStatusValuesSchema>;
 
 /** Flat API status (inside `{"Status":…}`): groups of values plus scalars (Time, Startup, …). */
 export const flatStatusSchema = z.record(
   z.string(),
-  z.union([statusScalarSchema, z.record(z.string(), statusScalarSchema.catch(null))]),
+  z.union([statusScalarSchema, z.record(z.string(), z.catch(statusScalarSchema, null))]),
 );
 export type FlatStatusValues = z.infer<typeof flatStatusSchema>;
 
 /** `GET /status/values`: flat API wraps it in `{"Status":…}`. */
-export const statusValuesSchema = z.unknown().transform((v, ctx) => {
-  if (nestsDeeper(v, MAX_DEPTH)) {
-    ctx.addIssue({ code: 'custom', message: `nested deeper than ${MAX_DEPTH} levels` });
+export const statusValuesSchema = z.pipe(
+  z.unknown(),
+  z.transform((v, ctx) => {
+    if (nestsDeeper(v, MAX_DEPTH)) {
+      addIssue(ctx, { code: 'custom', message: `nested deeper than ${MAX_DEPTH} levels` });
+      return z.NEVER;
+    }
+    if (v && typeof v === 'object' && 'Status' in v) {
+      const r = flatStatusSchema.safeParse((v as { Status: unknown }).Status);
+      if (r.success) return { api: 'flat' as const, values: r.data };
+      for (const i of r.error.issues)
+        addIssue(ctx, { code: 'custom', message: i.message, path: ['Status', ...i.path] });
+      return z.NEVER;
+    }
+    const r = moduleStatusValuesSchema.safeParse(v);
+    if (r.success) return { api: 'module' as const, values: r.data };
+    for (const i of r.error.issues) addIssue(ctx, { code: 'custom', message: i.message, path: i.path });
     return z.NEVER;
-  }
-  if (v && typeof v === 'object' && 'Status' in v) {
-    const r = flatStatusSchema.safeParse((v as { Status: unknown }).Status);
-    if (r.success) return { api: 'flat' as const, values: r.data };
-    for (const i of r.error.issues)
-      ctx.addIssue({ code: 'custom', message: i.message, path: ['Status', ...i.path] });
-    return z.NEVER;
-  }
-  const r = moduleStatusValuesSchema.safeParse(v);
-  if (r.success) return { api: 'module' as const, values: r.data };
-  for (const i of r.error.issues) ctx.addIssue({ code: 'custom', message: i.message, path: i.path });
-  return z.NEVER;
-});
+  }),
+);
 
 export const STARTUP_STATES = ['Done', 'Update_Running', 'Update_Required', 'Waiting'] as const;
 export type StartupState = (typeof STARTUP_STATES)[number] | `unknown (raw ${string})`;
 
-export const startupSchema = z
-  .string()
-  .transform((s): StartupState =>
+export const startupSchema = z.pipe(
+  z.string(),
+  z.transform((s): StartupState =>
     (STARTUP_STATES as readonly string[]).includes(s) ? (s as StartupState) : `unknown (raw ${s})`,
-  );
+  ),
+);
 
 // ---------------------------------------------------------------------------------------------
 // WebSocket /websocket/everything
 
 export const smartPlugSchema = z.looseObject({
-  Enabled: z.boolean().catch(false),
-  Host: z.string().catch(''),
-  Provider: z.string().catch(''),
-  Power: z.string().catch('UNKNOWN'),
-  Watchdog_Active: z.boolean().catch(false),
-  Watchdog_Seconds: num.catch(0),
-  Busy: z.boolean().catch(false),
-  Error: z.string().catch(''),
+  Enabled: z.catch(z.boolean(), false),
+  Host: z.catch(z.string(), ''),
+  Provider: z.catch(z.string(), ''),
+  Power: z.catch(z.string(), 'UNKNOWN'),
+  Watchdog_Active: z.catch(z.boolean(), false),
+  Watchdog_Seconds: z.catch(num, 0),
+  Busy: z.catch(z.boolean(), false),
+  Error: z.catch(z.string(), ''),
 });
 export type SmartPlug = z.infer<typeof smartPlugSchema>;
 
@@ -277,58 +294,61 @@ export type WsMessage =
   | { type: 'unknown'; keys: string[] };
 
 const wsObject = z.looseObject({
-  Server_Start_Time: z.coerce.string().optional(),
-  Status_Values: moduleStatusValuesSchema.optional(),
-  Status: flatStatusSchema.optional(),
-  Startup: startupSchema.optional(),
-  Smart_Plug: smartPlugSchema.nullable().optional(),
-  Server_Exception: z
-    .looseObject({ Message: z.coerce.string().catch(''), Fatal: z.boolean().catch(true) })
-    .nullable()
-    .optional(),
-  Log: z.coerce.string().optional(),
-  Gcode_Command: z
-    .looseObject({
+  Server_Start_Time: z.optional(z.coerce.string()),
+  Status_Values: z.optional(moduleStatusValuesSchema),
+  Status: z.optional(flatStatusSchema),
+  Startup: z.optional(startupSchema),
+  Smart_Plug: z.optional(z.nullable(smartPlugSchema)),
+  Server_Exception: z.optional(
+    z.nullable(z.looseObject({ Message: z.catch(z.coerce.string(), ''), Fatal: z.catch(z.boolean(), true) })),
+  ),
+  Log: z.optional(z.coerce.string()),
+  Gcode_Command: z.optional(
+    z.looseObject({
       ID: z.coerce.string(),
-      Kind: z
-        .string()
-        .transform((k) => ((GCODE_KINDS as readonly string[]).includes(k) ? k : `unknown (raw ${k})`)),
-      Message: z.coerce.string().optional(),
-    })
-    .optional(),
+      Kind: z.pipe(
+        z.string(),
+        z.transform((k) => ((GCODE_KINDS as readonly string[]).includes(k) ? k : `unknown (raw ${k})`)),
+      ),
+      Message: z.optional(z.coerce.string()),
+    }),
+  ),
 });
 
 /** One WebSocket frame → a message, or a zod error (the caller logs it as a protocol problem). */
-export const wsMessageSchema = bounded(wsObject).transform((m): WsMessage => {
-  if (m.Server_Start_Time !== undefined) return { type: 'start', startTime: m.Server_Start_Time.trim() };
-  if (m.Status_Values !== undefined) {
-    return {
-      type: 'tick',
-      api: 'module',
-      values: m.Status_Values,
-      startup: m.Startup ?? null,
-      smartPlug: m.Smart_Plug ?? null,
-      exception: m.Server_Exception
-        ? { message: m.Server_Exception.Message, fatal: m.Server_Exception.Fatal }
-        : null,
-    };
-  }
-  if (m.Status !== undefined) {
-    const st = m.Status['Startup'];
-    const startup = typeof st === 'string' ? startupSchema.parse(st) : (m.Startup ?? null);
-    return { type: 'tick', api: 'flat', values: m.Status, startup };
-  }
-  if (m.Log !== undefined) return { type: 'log', text: m.Log };
-  if (m.Gcode_Command) {
-    return {
-      type: 'gcode',
-      id: m.Gcode_Command.ID,
-      kind: m.Gcode_Command.Kind,
-      message: m.Gcode_Command.Message ?? null,
-    };
-  }
-  return { type: 'unknown', keys: Object.keys(m) };
-});
+export const wsMessageSchema = z.pipe(
+  bounded(wsObject),
+  z.transform((m): WsMessage => {
+    if (m.Server_Start_Time !== undefined) return { type: 'start', startTime: m.Server_Start_Time.trim() };
+    if (m.Status_Values !== undefined) {
+      return {
+        type: 'tick',
+        api: 'module',
+        values: m.Status_Values,
+        startup: m.Startup ?? null,
+        smartPlug: m.Smart_Plug ?? null,
+        exception: m.Server_Exception
+          ? { message: m.Server_Exception.Message, fatal: m.Server_Exception.Fatal }
+          : null,
+      };
+    }
+    if (m.Status !== undefined) {
+      const st = m.Status['Startup'];
+      const startup = typeof st === 'string' ? startupSchema.parse(st) : (m.Startup ?? null);
+      return { type: 'tick', api: 'flat', values: m.Status, startup };
+    }
+    if (m.Log !== undefined) return { type: 'log', text: m.Log };
+    if (m.Gcode_Command) {
+      return {
+        type: 'gcode',
+        id: m.Gcode_Command.ID,
+        kind: m.Gcode_Command.Kind,
+        message: m.Gcode_Command.Message ?? null,
+      };
+    }
+    return { type: 'unknown', keys: Object.keys(m) };
+  }),
+);
 
 // ---------------------------------------------------------------------------------------------
 // Files, update check, commands
@@ -338,8 +358,8 @@ export const uploadsSchema = z.array(z.coerce.string());
 
 /** `GET /update-check` (module) / `GET /update_check` (flat): `{"Available","URL"}`. */
 export const updateCheckSchema = z.looseObject({
-  Available: z.boolean().catch(false),
-  URL: z.string().catch(''),
+  Available: z.catch(z.boolean(), false),
+  URL: z.catch(z.string(), ''),
 });
 export type UpdateCheck = z.infer<typeof updateCheckSchema>;
 

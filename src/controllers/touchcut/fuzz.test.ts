@@ -1,5 +1,5 @@
 import { describe, expect, it, vi } from 'vitest';
-import type { z } from 'zod';
+import type { z } from 'zod/mini';
 import {
   FAKE_TIMERS,
   Findings,
@@ -165,7 +165,7 @@ describe('TouchCut: hostile payloads through the parsers', () => {
   it('every wire schema, and what reads its output: no exception, no prototype from a payload', () => {
     const mut = new Mutator(SEED, { depths: [20, 200, 1000], veryDeep: 0 });
     const findings = new Findings();
-    const targets: Array<{ name: string; schema: z.ZodType; seeds: () => Seed[] }> = [
+    const targets: Array<{ name: string; schema: z.ZodMiniType; seeds: () => Seed[] }> = [
       { name: 'status', schema: wire.statusSchema, seeds: () => seeds.status },
       { name: 'machine-info', schema: wire.machineInfoSchema, seeds: () => seeds.info },
       { name: 'monitor', schema: wire.monitorSchema, seeds: () => seeds.monitor },

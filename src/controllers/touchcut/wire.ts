@@ -1,4 +1,5 @@
-import { z } from 'zod';
+import { z } from 'zod/mini';
+import { addIssue, preprocess } from '../../fleet/schema';
 
 /**
  * Wire schemas of the Kinetic TouchCut REST API v1 (`/rest/v1/...`).
@@ -35,16 +36,16 @@ function toStringish(v: unknown): unknown {
 /** null counts as absent: a sloppy server may send `null` for "no value". */
 const absent = (f: (v: unknown) => unknown) => (v: unknown) => (v === null ? undefined : f(v));
 
-export const num = z.preprocess(toNumber, z.number());
-export const optNum = z.preprocess(absent(toNumber), z.number().optional());
-export const bool = z.preprocess(toBoolean, z.boolean());
-export const optBool = z.preprocess(absent(toBoolean), z.boolean().optional());
-export const str = z.preprocess(toStringish, z.string());
-export const optStr = z.preprocess(absent(toStringish), z.string().optional());
+export const num = preprocess(toNumber, z.number());
+export const optNum = preprocess(absent(toNumber), z.optional(z.number()));
+export const bool = preprocess(toBoolean, z.boolean());
+export const optBool = preprocess(absent(toBoolean), z.optional(z.boolean()));
+export const str = preprocess(toStringish, z.string());
+export const optStr = preprocess(absent(toStringish), z.optional(z.string()));
 
 /** An array that may be missing or null (then empty). */
-function list<T extends z.ZodType>(item: T) {
-  return z.preprocess((v) => (v === null || v === undefined ? [] : v), z.array(item));
+function list<T extends z.ZodMiniType>(item: T) {
+  return preprocess((v) => (v === null || v === undefined ? [] : v), z.array(item));
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -62,7 +63,7 @@ export type ErrorBody = z.output<typeof errorBodySchema>;
 
 export const authResponseSchema = z.looseObject({
   success: optBool,
-  token: z.string().min(1),
+  token: z.string().check(z.minLength(1)),
 });
 export type AuthResponse = z.output<typeof authResponseSchema>;
 
@@ -91,8 +92,8 @@ export const machineInfoSchema = z.looseObject({
   licensedTo: optStr,
   primeCutInfo: optStr,
   registrationInfo: optStr,
-  contactInfo: z
-    .looseObject({
+  contactInfo: z.nullish(
+    z.looseObject({
       companyName: optStr,
       postalAddr: optStr,
       streetAddr: optStr,
@@ -101,8 +102,8 @@ export const machineInfoSchema = z.looseObject({
       fax: optStr,
       email: optStr,
       webSite: optStr,
-    })
-    .nullish(),
+    }),
+  ),
   tools: list(
     z.looseObject({
       toolType: optStr,
@@ -127,7 +128,7 @@ export type Pose = z.output<typeof poseSchema>;
  * `msgStatus: [{ "key": "<string>", "msg": "<string>" }]`. A bare string is accepted too (then it
  * is both key and message).
  */
-export const msgStatusSchema = z.preprocess(
+export const msgStatusSchema = preprocess(
   (v) => (typeof v === 'string' ? { key: v, msg: v } : v),
   z.looseObject({ key: optStr, msg: optStr }),
 );
@@ -150,14 +151,14 @@ export const statusSchema = z.looseObject({
   programName: optStr,
   /** `<double>`: the manual does not say 0..1 or 0..100; see `progressFraction`. */
   programProgress: optNum,
-  plateOrigin: poseSchema.nullish(),
+  plateOrigin: z.nullish(poseSchema),
   plateRotation: optNum,
   /** "MS-10.00 mm (0.394\")" */
   material: optStr,
   materialName: optStr,
   materialThickness: optNum,
-  commandedPos: poseSchema.nullish(),
-  actualPos: poseSchema.nullish(),
+  commandedPos: z.nullish(poseSchema),
+  actualPos: z.nullish(poseSchema),
   feedrate: optNum,
   feedOverride: optNum,
   msgStatus: list(msgStatusSchema),
@@ -183,12 +184,12 @@ export const ioPointSchema = z.looseObject({
   name: optStr,
   address: optStr,
   scale: optNum,
-  value: z.preprocess(
+  value: preprocess(
     absent((v) => {
       const b = toBoolean(v);
       return typeof b === 'boolean' && typeof v !== 'number' ? b : toNumber(v);
     }),
-    z.union([z.boolean(), z.number()]).optional(),
+    z.optional(z.union([z.boolean(), z.number()])),
   ),
   unitType: optStr,
 });
@@ -215,7 +216,7 @@ export interface IoGroups {
  * - an array of group objects `[{ "din": [...] }, { "dout": [...] }]` (merged in order),
  * - an empty array / null / missing (no I/O).
  */
-export const ioSchema = z.preprocess((v) => {
+export const ioSchema = preprocess((v) => {
   if (v === null || v === undefined) return {};
   if (Array.isArray(v)) {
     // Own keys only, kept as data: a group named `__proto__`, `constructor` or `toString` is just
@@ -243,13 +244,13 @@ export const ioSchema = z.preprocess((v) => {
 }, ioGroupsObject);
 
 /** errorCode is a `<uint64>`: may not fit a double, so it is kept as text. */
-const errorCode = z.preprocess(absent(toStringish), z.string().optional());
+const errorCode = preprocess(absent(toStringish), z.optional(z.string()));
 
 export const axisSchema = z.looseObject({
   name: optStr,
   address: optStr,
   /** `<TAxis>`: an enum the manual prints as an integer (1 = axisLong, 10 = axisShort in its example). */
-  index: z.preprocess(absent(toStringish), z.string().optional()),
+  index: preprocess(absent(toStringish), z.optional(z.string())),
   unitType: optStr,
   speedUnitType: optStr,
   scale: optNum,
@@ -377,21 +378,21 @@ export interface Stats {
   periods: StatsPeriod[];
 }
 
-export const statsSchema = z
-  .looseObject({
+export const statsSchema = z.pipe(
+  z.looseObject({
     machine: list(toolTotalsSchema),
     machineResettable: list(toolTotalsSchema),
     consumables: list(consumableSchema),
     units: optStr,
-  })
-  .transform((raw, ctx): Stats => {
+  }),
+  z.transform((raw, ctx): Stats => {
     const periods: StatsPeriod[] = [];
     const take = (v: unknown, path: (string | number)[]) => {
       const r = statsPeriodSchema.safeParse(v);
       if (r.success) periods.push(r.data);
       else
         for (const issue of r.error.issues)
-          ctx.addIssue({
+          addIssue(ctx, {
             code: 'custom',
             message: issue.message,
             path: [...path, ...issue.path.map((p) => p as string | number)],
@@ -419,7 +420,8 @@ export const statsSchema = z
       programs: periods.flatMap((p) => p.programs),
       errors: periods.flatMap((p) => p.errors),
     };
-  });
+  }),
+);
 
 // ---------------------------------------------------------------------------------------------
 // rest/v1/programs and rest/v1/unloader — "Interface subject to change": any JSON object or array

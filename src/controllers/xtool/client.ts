@@ -1,5 +1,5 @@
 import { LinkError } from '../../fleet/errors';
-import type { z } from 'zod';
+import type { z } from 'zod/mini';
 import {
   HttpClient,
   parseJsonLenient,
@@ -311,11 +311,15 @@ export class XtoolClient {
     return next;
   }
 
-  private json<S extends z.ZodType>(opts: RequestOptions, schema: S): Promise<z.output<S>> {
+  private json<S extends z.ZodMiniType>(opts: RequestOptions, schema: S): Promise<z.output<S>> {
     return this.lane(() => this.http.json(opts, schema), opts.signal);
   }
 
-  private system<S extends z.ZodType>(action: string, schema: S, signal?: AbortSignal): Promise<z.output<S>> {
+  private system<S extends z.ZodMiniType>(
+    action: string,
+    schema: S,
+    signal?: AbortSignal,
+  ): Promise<z.output<S>> {
     return this.json({ path: '/system', query: { action }, signal }, schema);
   }
 }

@@ -1,5 +1,5 @@
 import { describe, expect, it, vi } from 'vitest';
-import type { z } from 'zod';
+import type { z } from 'zod/mini';
 import {
   FAKE_TIMERS,
   Findings,
@@ -56,7 +56,7 @@ function seedsOf(files: Array<{ name: string; text: string }>, match: RegExp): S
 }
 
 /** Each schema with the captures of its answer (and, now and then, another answer: wrong shapes). */
-const TARGETS: Array<{ name: string; schema: z.ZodType; seeds: Seed[] }> = [
+const TARGETS: Array<{ name: string; schema: z.ZodMiniType; seeds: Seed[] }> = [
   { name: 'ping', schema: wire.pingSchema, seeds: seedsOf(HTTP, /ping|result_/) },
   { name: 'progress', schema: wire.progressSchema, seeds: seedsOf(HTTP, /progress/) },
   { name: 'machine type', schema: wire.machineTypeSchema, seeds: seedsOf(HTTP, /getmachinetype/) },

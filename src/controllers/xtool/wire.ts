@@ -1,6 +1,7 @@
-import { z } from 'zod';
+import { z } from 'zod/mini';
 import { LinkError } from '../../fleet/errors';
 import type { VendorErrorParser } from '../../fleet/http';
+import { preprocess } from '../../fleet/schema';
 
 /**
  * Wire format of the xTool D-series (D1, D1 Pro, D1 Pro 2.0): HTTP on :8080, WebSocket on :8081.
@@ -16,19 +17,25 @@ import type { VendorErrorParser } from '../../fleet/http';
  */
 
 /** A number, or a string holding one ("0", " 12.5 "). Empty strings and garbage fail. */
-export const num = z.preprocess(
+export const num = preprocess(
   (v) => (typeof v === 'string' && v.trim() !== '' ? Number(v.trim()) : v),
   z.number(),
 );
 
 /** A string, or a number the firmware sent unquoted. */
-export const str = z.union([z.string(), z.number()]).transform((v) => String(v));
+export const str = z.pipe(
+  z.union([z.string(), z.number()]),
+  z.transform((v) => String(v)),
+);
 
 /** 1 = on, 0 = off (document, /peripherystatus and /system?action=set*StopSwitch). */
-export const flag = num.transform((n) => n !== 0);
+export const flag = z.pipe(
+  num,
+  z.transform((n) => n !== 0),
+);
 
 /** Most answers carry `result`; the vendor parser already rejected anything but "ok". */
-const result = z.string().optional();
+const result = z.optional(z.string());
 
 // ---------------------------------------------------------------------------------------------
 // HTTP answers
@@ -44,7 +51,7 @@ export const pingSchema = z.looseObject({ result });
 export const progressSchema = z.looseObject({
   progress: num,
   working: num,
-  line: num.optional(),
+  line: z.optional(num),
 });
 export type Progress = z.output<typeof progressSchema>;
 
@@ -55,7 +62,7 @@ export const machineTypeSchema = z.looseObject({ result, type: str });
 export const laserPowerTypeSchema = z.looseObject({ result, power: num });
 
 /** GET /getlaserpowerinfo → {"result":"ok","type":0,"power":10}; `type` meaning unknown (document). */
-export const laserPowerInfoSchema = z.looseObject({ result, type: num.optional(), power: num });
+export const laserPowerInfoSchema = z.looseObject({ result, type: z.optional(num), power: num });
 
 export type FlameSensitivity = 'high' | 'low' | 'off' | `unknown (raw ${number})`;
 
@@ -79,15 +86,15 @@ export function flameSensitivityWords(n: number): FlameSensitivity {
  */
 export const peripheryStatusSchema = z.looseObject({
   result,
-  status: str.optional(),
-  sdCard: flag.optional(),
-  limitStopFlag: flag.optional(),
-  tiltStopFlag: flag.optional(),
-  movingStopFlag: flag.optional(),
-  tiltThreshold: num.optional(),
-  movingThreshold: num.optional(),
-  flameAlarmMode: num.optional(),
-  flameAlarmSensitivity: num.optional(),
+  status: z.optional(str),
+  sdCard: z.optional(flag),
+  limitStopFlag: z.optional(flag),
+  tiltStopFlag: z.optional(flag),
+  movingStopFlag: z.optional(flag),
+  tiltThreshold: z.optional(num),
+  movingThreshold: z.optional(num),
+  flameAlarmMode: z.optional(num),
+  flameAlarmSensitivity: z.optional(num),
 });
 export type PeripheryStatus = z.output<typeof peripheryStatusSchema>;
 
@@ -95,7 +102,7 @@ export type PeripheryStatus = z.output<typeof peripheryStatusSchema>;
 export const macSchema = z.looseObject({ result, mac: str });
 
 /** GET /system?action=version → {"sn":"…","version":"V40.31.006.01 B2"} */
-export const versionSchema = z.looseObject({ result, sn: str.optional(), version: str });
+export const versionSchema = z.looseObject({ result, sn: z.optional(str), version: str });
 
 export type WorkingCode = 'idle' | 'api' | 'button' | 'unknown';
 
@@ -122,9 +129,10 @@ export function workingCode(raw: string): WorkingCode {
 }
 
 /** GET /system?action=get_working_sta → {"result":"ok","working":"0"} (a string on real devices). */
-export const workingStaSchema = z
-  .looseObject({ result, working: str })
-  .transform((v): WorkingSta => ({ code: workingCode(v.working), raw: v.working }));
+export const workingStaSchema = z.pipe(
+  z.looseObject({ result, working: str }),
+  z.transform((v): WorkingSta => ({ code: workingCode(v.working), raw: v.working })),
+);
 
 /** GET /system?action=offset → red-cross offset {"x":0.0,"y":0.0} (mm). */
 export const offsetSchema = z.looseObject({ result, x: num, y: num });
@@ -143,19 +151,22 @@ export const resultSchema = z.looseObject({ result: z.string() });
  * come without `name` (treated as []), a single entry as a bare string.
  */
 export const listSchema = z.looseObject({
-  type: str.optional(),
-  name: z
-    .union([z.array(str), str])
-    .optional()
-    .transform((v) => (v === undefined ? [] : Array.isArray(v) ? v : [v])),
+  type: z.optional(str),
+  name: z.pipe(
+    z.optional(z.union([z.array(str), str])),
+    z.transform((v) => (v === undefined ? [] : Array.isArray(v) ? v : [v])),
+  ),
 });
 export type FileList = z.output<typeof listSchema>;
 
 /** POST /upgrade answers "OK" or "FAIL" in plain text (document); anything else is unknown. */
-export const upgradeReplySchema = z
-  .string()
-  .transform((t) => t.trim().toUpperCase())
-  .pipe(z.enum(['OK', 'FAIL']));
+export const upgradeReplySchema = z.pipe(
+  z.pipe(
+    z.string(),
+    z.transform((t) => t.trim().toUpperCase()),
+  ),
+  z.enum(['OK', 'FAIL']),
+);
 
 /**
  * The vendor error parser for HttpClient: `{"result":"fail"}` (HTTP 200) and friends become a
@@ -231,7 +242,7 @@ export function parseFrameText(data: string): XtoolFrame {
   return { kind: 'unknown', raw };
 }
 
-export const frameSchema = z.string().transform(parseFrameText);
+export const frameSchema = z.pipe(z.string(), z.transform(parseFrameText));
 
 // ---------------------------------------------------------------------------------------------
 // Models: other xTool families speak other protocols (S1, F1, P2, M1, MetalFab…)
@@ -248,21 +259,27 @@ export function classifyMachineType(type: string): ModelFamily {
 
 /** The device's reply: {"requestId":123456,"ip":"…","name":"xTool D1 Pro","version":"40.31.006.01"}. */
 export const discoveryReplySchema = z.looseObject({
-  requestId: num.optional(),
+  requestId: z.optional(num),
   ip: z.string(),
-  name: str.optional().transform((v) => v ?? ''),
-  version: str.optional().transform((v) => v ?? ''),
-  via: z
-    .string()
-    .optional()
-    .transform((v) => (v === 'udp' || v === 'tcp' ? v : v === undefined ? 'unknown' : `unknown (raw ${v})`)),
+  name: z.pipe(
+    z.optional(str),
+    z.transform((v) => v ?? ''),
+  ),
+  version: z.pipe(
+    z.optional(str),
+    z.transform((v) => v ?? ''),
+  ),
+  via: z.pipe(
+    z.optional(z.string()),
+    z.transform((v) => (v === 'udp' || v === 'tcp' ? v : v === undefined ? 'unknown' : `unknown (raw ${v})`)),
+  ),
 });
 export type DiscoveryReply = z.output<typeof discoveryReplySchema>;
 
 export const discoveryResponseSchema = z.looseObject({
   replies: z.array(discoveryReplySchema),
-  broadcast: z.string().optional(),
+  broadcast: z.optional(z.string()),
   /** Problems the gateway met (a broadcast it could not send). */
-  warnings: z.array(z.string()).optional(),
+  warnings: z.optional(z.array(z.string())),
 });
 export type DiscoveryResponse = z.output<typeof discoveryResponseSchema>;
