@@ -6,6 +6,7 @@ import { auditQueryFrom, toCsv } from './audit';
 import { LoginHistory, SESSION_COOKIE, type LimitKey } from './auth';
 import { discoverXtool } from './discovery';
 import { clientAddress, parseCookies, readJson, sendJson } from './http-util';
+import type { WatchAlarm, WatchSummary } from '../src/fleet/contract';
 import { machineInfo } from './machines';
 import { createSimApi, SIM_API_PATH } from './sim-api';
 import { PIN_RULE, checkSecret } from './users';
@@ -52,6 +53,51 @@ export interface ApiStores {
   webhook: Webhook;
   /** The production history (`/api/history/*`); absent: those routes answer 404. */
   history?: History;
+  /** What the gateway's watch knows of a machine now (watch.ts); absent: nothing is watched. */
+  watched?: (id: string) => Watched | null;
+}
+
+/** A machine's watch summary as `GET /api/machines` gives it (the fleet page's first screen). */
+export interface Watched {
+  summary: WatchSummary;
+  /** When the watch last heard the machine (ms, the gateway's clock); null: not yet. */
+  lastSeen: number | null;
+}
+
+const SEVERITY_RANK = { info: 0, warning: 1, critical: 2 } as const;
+
+/** The highest severity among the alarms the watch read (warning when it did not say). */
+function mostSevere(alarms: readonly WatchAlarm[]): WatchAlarm['severity'] {
+  let best: WatchAlarm['severity'] | null = null;
+  for (const a of alarms)
+    if (best === null || SEVERITY_RANK[a.severity] > SEVERITY_RANK[best]) best = a.severity;
+  return best ?? 'warning';
+}
+
+/** Longest text of a controller's the machines list carries (a job name, an alarm). */
+const WATCH_TEXT_MAX = 200;
+
+/**
+ * The summary sent with a machine (`watch`): state, job, progress and alarm as the gateway's watch
+ * last read them, and how long ago (its age, not a clock time: the tablet's clock may differ).
+ * Controller text is scrubbed of the machine's secrets and cut short; the page escapes it.
+ */
+export function watchForPage(
+  w: Watched | null,
+  now: number,
+  scrub: (text: string) => string,
+): Record<string, unknown> | undefined {
+  if (!w || w.summary.state === 'unknown') return undefined;
+  const text = (t: string | null): string | null => (t === null ? null : scrub(t).slice(0, WATCH_TEXT_MAX));
+  const s = w.summary;
+  return {
+    state: s.state,
+    job: text(s.job),
+    progress: typeof s.progress === 'number' && s.progress >= 0 && s.progress <= 1 ? s.progress : null,
+    alarm: text(s.alarm),
+    alarmSeverity: s.alarm === null ? null : mostSevere(s.alarms ?? []),
+    ageMs: w.lastSeen === null ? null : Math.max(0, now - w.lastSeen),
+  };
 }
 
 export function createApi(ctx: GatewayContext, stores: ApiStores = createAlarmStores(ctx)) {
@@ -339,7 +385,13 @@ export function createApi(ctx: GatewayContext, stores: ApiStores = createAlarmSt
           return;
         }
         const p = w.principal;
-        const machines = config.machines.filter((m) => mayUseMachine(p, m.id)).map(machineInfo);
+        const t = now();
+        const machines = config.machines
+          .filter((m) => mayUseMachine(p, m.id))
+          .map((m) => {
+            const watch = watchForPage(stores.watched?.(m.id) ?? null, t, ctx.scrub);
+            return watch ? { ...machineInfo(m), watch } : machineInfo(m);
+          });
         // `demo`: the built-in demo fleet (no machines file): the gateway runs demo jobs.
         sendJson(res, 200, { machines, demo: ctx.builtInDemo });
         return;

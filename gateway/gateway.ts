@@ -102,7 +102,16 @@ export function createGateway(opts: GatewayOptions): Gateway {
     read: watchRead,
   });
   const stopHistoryFeed = ctx.onRecord((e) => history.recorded(e));
-  const api = createApi(ctx, { ...stores, history });
+  // The watch of each machine, by id (filled below): its summary goes with `GET /api/machines`.
+  const watchById = new Map<string, MachineWatch>();
+  const api = createApi(ctx, {
+    ...stores,
+    history,
+    watched: (id) => {
+      const w = watchById.get(id);
+      return w ? { summary: w.current, lastSeen: w.lastSeen } : null;
+    },
+  });
   const { upgradeMachine, holdStream } = createWsProxy(ctx);
 
   // The gateway's own slow watch of every machine, viewers or not (watch.ts): job starts and ends
@@ -139,6 +148,7 @@ export function createGateway(opts: GatewayOptions): Gateway {
         },
       });
       watches.push(w);
+      watchById.set(m.id, w);
       w.start();
     }
   }

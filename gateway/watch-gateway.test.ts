@@ -237,6 +237,40 @@ describe('the alarm centre, with no page open', () => {
     );
   });
 
+  it('the machines list carries the watch reading of the user machines only (the first screen)', async () => {
+    const { gw, flame } = await setup();
+    const vera = await login(gw.url, 'vera', 'vera-pass-1');
+    const lena = await login(gw.url, 'lena', 'lena-pass-1');
+    type Listed = {
+      machines: Array<{
+        id: string;
+        watch?: { state: string; alarm: string | null; alarmSeverity: string | null; ageMs: number | null };
+      }>;
+    };
+    const machines = async (cookie: string): Promise<Listed['machines']> => {
+      const r = await consoleFetch(`${gw.url}/api/machines`, { headers: { cookie } });
+      expect(r.status).toBe(200);
+      return ((await r.json()) as Listed).machines;
+    };
+    flame();
+    let seen: Listed['machines'] = [];
+    await until('the flame in the machines list', async () => {
+      seen = await machines(vera);
+      return seen.find((m) => m.id === 'x1')?.watch?.alarm != null;
+    });
+    const x1 = seen.find((m) => m.id === 'x1')?.watch;
+    expect(x1?.state).toBe('alarm');
+    expect(x1?.alarmSeverity).toBe('critical');
+    expect(typeof x1?.ageMs).toBe('number');
+    // Lena may use "other" only: the laser is not in her list at all, nor its reading.
+    const hers = await machines(lena);
+    expect(hers.map((m) => m.id)).toEqual(['other']);
+    expect(JSON.stringify(hers)).not.toContain('flame');
+    // No login: no list (and no reading).
+    const anon = await consoleFetch(`${gw.url}/api/machines`);
+    expect(anon.status).toBe(401);
+  });
+
   it('refuses a forged acknowledgement: another site, no login, a machine the user may not use', async () => {
     const { gw, flame } = await setup();
     const otto = await login(gw.url, 'otto', 'otto-pass-1');

@@ -59,9 +59,11 @@ describe('bundle report', () => {
     // Shell, machine page, family, query, first tab and its CSS.
     expect(s['machine page: xtool']).toBe(174 + 6 + 10 + 11 + 2 + 1);
     // A shop of lasers only: shell, fleet page, one family and query.
-    expect(s['fleet page: xtool machines only']).toBe(174 + 5 + 10 + 11);
+    expect(s['fleet page, live tiles: xtool machines only']).toBe(174 + 5 + 10 + 11);
+    // The fleet page's first screen: the shell and the fleet page, no family.
+    expect(s['fleet page: first screen']).toBe(174 + 5);
     // Shell, fleet page, five families, query once.
-    expect(s['fleet page: all five families']).toBe(174 + 5 + 5 * 10 + 11);
+    expect(s['fleet page, live tiles: all five families']).toBe(174 + 5 + 5 * 10 + 11);
   });
 
   it('fails loudly when a family or page has no chunk of its own', () => {

@@ -96,19 +96,24 @@ export function screensOf(chunkList: ChunkInfo[], css: AssetInfo[]): Screen[] {
   const shell = closure(chunks, entry.file);
   const out: Screen[] = [screen('shell', shell)];
   const fleetShell = closure(chunks, need(FLEET_PAGE).file, new Set(shell));
+  // The fleet page paints its tiles from the console server's readings (src/app/first-screen.ts)
+  // before any family's code; the families' code then loads at idle and makes the tiles live.
+  out.push(screen('fleet page: first screen', fleetShell));
   const fleet = new Set(fleetShell);
   const machinePage = closure(chunks, need(MACHINE_PAGE).file, new Set(shell));
   for (const kind of MACHINE_KINDS) {
     const mod = need(familyModule(kind));
     const withFamily = closure(chunks, mod.file, new Set(shell));
-    out.push(screen(`fleet page: ${kind} machines only`, closure(chunks, mod.file, new Set(fleetShell))));
+    out.push(
+      screen(`fleet page, live tiles: ${kind} machines only`, closure(chunks, mod.file, new Set(fleetShell))),
+    );
     closure(chunks, mod.file, fleet);
     const family = new Set([...withFamily].filter((f) => !shell.has(f)));
     out.push(screen(`family: ${kind}`, family));
     const page = closure(chunks, mod.file, new Set(machinePage));
     out.push(screen(`machine page: ${kind}`, closure(chunks, need(FIRST_TAB_VIEWS[kind]).file, page)));
   }
-  out.push(screen('fleet page: all five families', fleet));
+  out.push(screen('fleet page, live tiles: all five families', fleet));
   return out;
 }
 

@@ -3,7 +3,7 @@ import { act, cleanup, render, screen, within } from '@testing-library/react';
 import { afterEach, beforeEach, describe, expect, it, vi } from 'vitest';
 import { registerController } from '../controllers';
 import type { ControllerModule, MachineSession, SessionContext } from '../fleet/contract';
-import { createRuntime, fleetStore, registerRuntime, getRuntime } from '../fleet/fleet';
+import { createRuntime, fleetStore, pendingRuntime, registerRuntime, getRuntime } from '../fleet/fleet';
 import { FleetPage } from './FleetPage';
 import { alwaysVisible } from '../fleet/link';
 import type { MachineInfo } from '../fleet/types';
@@ -95,5 +95,79 @@ describe('FleetPage', () => {
     });
     expect(age().dataset.stale).toBe('true');
     expect(age().textContent).toContain('stale');
+  });
+
+  it('before its session answers, a tile shows the console server reading, then the session data', () => {
+    const m: MachineInfo = {
+      id: 'first-screen',
+      name: 'Table',
+      kind: 'touchcut',
+      simulated: true,
+      watch: {
+        state: 'running',
+        job: 'FLANGE.nc',
+        progress: 0.25,
+        alarm: 'Torch <b>collision</b>',
+        alarmSeverity: 'critical',
+        ageMs: 3000,
+      },
+    };
+    // No family code yet: the runtime waits for its session (boot.ts makes it so).
+    const rt = pendingRuntime(m, { visibility: alwaysVisible });
+    registerRuntime(rt);
+    fleetStore.setState({ status: 'ready', machines: [m], error: null });
+    render(<FleetPage />);
+    const tile = () => screen.getByTestId('tile-first-screen');
+    expect(within(tile()).getByTestId('tile-activity').textContent).toBe('Running');
+    expect(within(tile()).getByTestId('tile-label').textContent).toBe(
+      'Read by the console server 3 s ago · connecting…',
+    );
+    expect(within(tile()).getByText('FLANGE.nc')).toBeTruthy();
+    expect(within(tile()).getByText('25%')).toBeTruthy();
+    // Controller text is text: the markup is shown as written, never parsed.
+    expect(within(tile()).getByTestId('tile-alarm').textContent).toContain('Torch <b>collision</b>');
+    expect(tile().querySelector('b')).toBeNull();
+    expect(screen.getByTestId('summary-running').textContent).toBe('1 running');
+    expect(within(tile()).getByTestId('tile-link').textContent).toMatch(/connecting/i);
+    // The session's first answer: its own data replaces the server's reading.
+    act(() => {
+      rt.snapshot.setState({
+        link: 'online',
+        activity: 'idle',
+        activityLabel: 'Ready',
+        job: null,
+        updatedAt: Date.now(),
+      });
+    });
+    expect(within(tile()).getByTestId('tile-activity').textContent).toBe('Idle');
+    expect(within(tile()).getByTestId('tile-label').textContent).toBe('Ready');
+    expect(within(tile()).queryByTestId('tile-alarm')).toBeNull();
+    expect(screen.getByTestId('summary-running').textContent).toBe('0 running');
+  });
+
+  it('a session that fails before any answer shows its failure, not the server reading', () => {
+    const m: MachineInfo = {
+      id: 'first-fail',
+      name: 'Mill',
+      kind: 'duet',
+      simulated: false,
+      watch: { state: 'running', job: null, progress: null, alarm: null, ageMs: null },
+    };
+    const rt = addMachine(m);
+    fleetStore.setState({ status: 'ready', machines: [m], error: null });
+    render(<FleetPage />);
+    const tile = () => screen.getByTestId('tile-first-fail');
+    expect(within(tile()).getByTestId('tile-label').textContent).toBe(
+      'Read by the console server · connecting…',
+    );
+    act(() => {
+      rt.snapshot.setState({
+        link: 'offline',
+        activity: 'offline',
+        activityLabel: 'Cannot reach the machine',
+      });
+    });
+    expect(within(tile()).getByTestId('tile-activity').textContent).toBe('Offline');
+    expect(within(tile()).getByTestId('tile-label').textContent).toBe('Cannot reach the machine');
   });
 });

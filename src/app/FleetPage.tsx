@@ -1,4 +1,4 @@
-import { memo, Suspense, useId, useMemo } from 'react';
+import { memo, Suspense, useEffect, useId, useMemo } from 'react';
 import { useStore } from 'zustand';
 import { FAMILY_LABELS, useController } from '../controllers';
 import { getRuntime, fleetStore, type MachineRuntime } from '../fleet/fleet';
@@ -24,7 +24,8 @@ import { useArrangement } from './fleet-views/live';
 import { useFleetPrefs } from './fleet-views/usePrefs';
 import { MachinePage } from './pages';
 import { Link } from './router';
-import { ACTIVITY_TONE, ACTIVITY_WORDS, cardFields, LINK_TONE } from './status';
+import { activityOf, cardOf, firstScreenShown } from './first-screen';
+import { ACTIVITY_TONE, ACTIVITY_WORDS, LINK_TONE } from './status';
 import { useRuntimesOf } from './runtimes';
 
 /** The dense list view: its own chunk (the tiles are the first screen). */
@@ -53,6 +54,8 @@ function FleetBody({ machines }: { machines: MachineInfo[] }) {
   const groups = useArrangement(machines, prefs);
   const byId = useMemo(() => new Map(machines.map((m) => [m.id, m])), [machines]);
   const shown = groups.reduce((n, g) => n + g.ids.length, 0);
+  // The first screen is up: the families' code may load now (boot.ts).
+  useEffect(() => firstScreenShown(), []);
   return (
     <div className="fleet" data-view={prefs.view}>
       <SummaryBar machines={machines} />
@@ -138,7 +141,8 @@ function SummaryBar({ machines }: { machines: MachineInfo[] }) {
       for (const rt of rts) {
         const s = rt.snapshot.getState();
         const alarm = s.alarms.some((a) => a.severity === 'critical' && !a.acknowledged);
-        for (const def of SUMMARY) if (def.match(s.activity, alarm)) c[def.key] = (c[def.key] ?? 0) + 1;
+        const activity = activityOf(rt.info, s);
+        for (const def of SUMMARY) if (def.match(activity, alarm)) c[def.key] = (c[def.key] ?? 0) + 1;
       }
       return c;
     },
@@ -164,7 +168,11 @@ export const MachineTile = memo(function MachineTile({ info }: { info: MachineIn
 });
 
 function TileBody({ info, rt }: { info: MachineInfo; rt: MachineRuntime }) {
-  const s = useSnapshot(rt, cardFields);
+  // The session's card, or the console server's reading until the session's first answer.
+  const s = useSnapshot(
+    rt,
+    useMemo(() => cardOf(info), [info]),
+  );
   // Undefined while the family's code loads (the tile shows its state meanwhile).
   const mod = useController(info.kind);
   const alarm = mostSevereAlarm(s.alarms.filter((a) => !a.acknowledged));

@@ -113,4 +113,52 @@ describe('boot', () => {
       expect([...sessionsStarted].sort()).toEqual(['kiosk-laser', 'kiosk-laser-2', 'kiosk-printer']),
     );
   });
+
+  it('the fleet page paints from the server readings first; the families load after it', async () => {
+    history.replaceState(null, '', '/');
+    const order: string[] = [];
+    controllerLoaders.touchcut = () => (order.push('touchcut'), Promise.resolve(fakeModule('touchcut')));
+    controllerLoaders.prunt = () => (order.push('prunt'), Promise.resolve(fakeModule('prunt')));
+    vi.stubGlobal(
+      'fetch',
+      vi.fn((url: string) =>
+        Promise.resolve(
+          url.startsWith('/api/machines')
+            ? answer({
+                machines: [
+                  {
+                    id: 'fs-table',
+                    name: 'Table',
+                    kind: 'touchcut',
+                    simulated: true,
+                    watch: { state: 'running', job: 'A.nc', progress: 0.5, alarm: null, ageMs: 1200 },
+                  },
+                  // A reading the page cannot use is left out alone: the machine still comes.
+                  {
+                    id: 'fs-printer',
+                    name: 'Printer',
+                    kind: 'prunt',
+                    simulated: true,
+                    watch: { state: 'melting' },
+                  },
+                ],
+              })
+            : answer({ mode: 'open', user: null }),
+        ),
+      ),
+    );
+    const { boot } = await import('./boot');
+    const { fleetStore } = await import('../fleet/fleet');
+    const { firstScreenShown } = await import('./first-screen');
+    await boot();
+    const machines = fleetStore.getState().machines;
+    expect(machines.find((m) => m.id === 'fs-table')?.watch).toMatchObject({ state: 'running', job: 'A.nc' });
+    expect(machines.find((m) => m.id === 'fs-printer')).toMatchObject({ name: 'Printer' });
+    expect(machines.find((m) => m.id === 'fs-printer')?.watch).toBeUndefined();
+    // No family's code before the first screen is up.
+    await new Promise((r) => setTimeout(r, 300));
+    expect(order).toEqual([]);
+    firstScreenShown();
+    await vi.waitFor(() => expect([...order].sort()).toEqual(['prunt', 'touchcut']), { timeout: 3000 });
+  });
 });

@@ -17,6 +17,7 @@ import { MACHINE_KINDS, type MachineInfo, type MachineKind } from '../fleet/type
 import { CONSOLE_HEADERS } from '../fleet/origin';
 import { startReadSocket } from '../fleet/read-socket';
 import { fetchSession, trackActivity } from './auth/api';
+import { onFirstScreen, readWatch } from './first-screen';
 import { untilReachable } from './pwa/reach';
 import { onLocationChange } from './router';
 
@@ -28,6 +29,7 @@ const MachinesAnswer = z.object({
       kind: z.enum(MACHINE_KINDS),
       simulated: z.boolean(),
       group: z.optional(z.string()),
+      watch: z.optional(z.unknown()),
     }),
   ),
 });
@@ -65,7 +67,11 @@ export async function boot(): Promise<void> {
     const parsed = MachinesAnswer.safeParse(await r.json());
     if (!parsed.success)
       throw new Error(`the machine list is malformed: ${parsed.error.issues[0]?.message ?? ''}`);
-    machines = parsed.data.machines;
+    // The server's reading of each machine is read on its own: a bad one is left out, not the fleet.
+    machines = parsed.data.machines.map(({ watch, ...m }) => {
+      const w = readWatch(watch);
+      return w ? { ...m, watch: w } : m;
+    });
   } catch (e) {
     fleetStore.setState({
       status: 'error',
@@ -124,6 +130,20 @@ export async function boot(): Promise<void> {
       clearTimeout(timer);
       whenIdle(rest);
     }
+  } else if (location.pathname === '/') {
+    // The fleet page paints first, from the server's readings in the machines list
+    // (first-screen.ts); the families' code loads when the browser is idle after that (or after
+    // a few seconds at the latest: a page that never shows its tiles still starts its machines).
+    let done = false;
+    const all = (): void => {
+      if (done) return;
+      done = true;
+      cancel();
+      clearTimeout(timer);
+      start(created);
+    };
+    const cancel = onFirstScreen(() => whenIdle(all));
+    const timer = setTimeout(all, OTHERS_AFTER_MS);
   } else start(created);
   window.addEventListener('pagehide', () => {
     for (const rt of allRuntimes()) rt.session?.stop();

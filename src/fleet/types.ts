@@ -22,6 +22,18 @@ export interface MachineInfo {
   simulated: boolean;
   /** Where it stands (a bay, a room), from the machines file's optional `group`. */
   group?: string;
+  /**
+   * What the console server's watch last read of it, sent with the machines list: the fleet
+   * page's first screen before its session answers (src/app/first-screen.ts).
+   */
+  watch?: {
+    state: 'running' | 'paused' | 'idle' | 'alarm' | 'offline';
+    job: string | null;
+    progress: number | null;
+    alarm: string | null;
+    alarmSeverity?: AlarmSeverity | null | undefined;
+    ageMs: number | null;
+  };
 }
 
 export const ROLES = ['viewer', 'operator', 'supervisor'] as const;

@@ -22,7 +22,8 @@ describe('bundle budget', () => {
   it('reports every screen: the shell, each family, each machine page, the fleet page', () => {
     const names = report?.screens.map((s) => s.name) ?? [];
     expect(names).toContain('shell');
-    expect(names).toContain('fleet page: all five families');
+    expect(names).toContain('fleet page: first screen');
+    expect(names).toContain('fleet page, live tiles: all five families');
     for (const kind of MACHINE_KINDS) {
       expect(names).toContain(`family: ${kind}`);
       expect(names).toContain(`machine page: ${kind}`);
