@@ -30,6 +30,8 @@ function build(): { chunks: ChunkInfo[]; css: AssetInfo[] } {
     chunk('zod.js', 20),
     chunk('fleet.js', 5, { facade: 'src/app/FleetPage.tsx', imports: ['react.js'] }),
     chunk('machine.js', 6, { facade: 'src/app/MachinePage.tsx' }),
+    chunk('kiosk.js', 3, { facade: 'src/app/kiosk/KioskPage.tsx' }),
+    chunk('overrides.js', 1, { facade: 'src/controllers/g2core/views/Overrides.tsx' }),
     chunk('query.js', 11),
   ];
   for (const kind of MACHINE_KINDS) {
@@ -58,6 +60,9 @@ describe('bundle report', () => {
     expect(s['family: xtool']).toBe(10 + 11);
     // Shell, machine page, family, query, first tab and its CSS.
     expect(s['machine page: xtool']).toBe(174 + 6 + 10 + 11 + 2 + 1);
+    // A kiosk: the machine page's route and the kiosk view, no tab; g2core's with its kiosk view.
+    expect(s['kiosk page: xtool']).toBe(174 + 6 + 3 + 10 + 11);
+    expect(s['kiosk page: g2core']).toBe(174 + 6 + 3 + 10 + 11 + 1);
     // A shop of lasers only: shell, fleet page, one family and query.
     expect(s['fleet page, live tiles: xtool machines only']).toBe(174 + 5 + 10 + 11);
     // The fleet page's first screen: the shell and the fleet page, no family.

@@ -26,6 +26,11 @@ export const familyModule = (kind: MachineKind): string => `src/controllers/${ki
 /** The route chunks (src/app/pages.ts). */
 const FLEET_PAGE = 'src/app/FleetPage.tsx';
 const MACHINE_PAGE = 'src/app/MachinePage.tsx';
+const KIOSK_PAGE = 'src/app/kiosk/KioskPage.tsx';
+/** The view a family's kiosk page shows below its controls (src/app/kiosk/per-family.ts). */
+export const KIOSK_EXTRA_VIEWS: Partial<Record<MachineKind, string>> = {
+  g2core: 'src/controllers/g2core/views/Overrides.tsx',
+};
 
 export interface ChunkInfo {
   file: string;
@@ -112,6 +117,11 @@ export function screensOf(chunkList: ChunkInfo[], css: AssetInfo[]): Screen[] {
     out.push(screen(`family: ${kind}`, family));
     const page = closure(chunks, mod.file, new Set(machinePage));
     out.push(screen(`machine page: ${kind}`, closure(chunks, need(FIRST_TAB_VIEWS[kind]).file, page)));
+    // A kiosk tablet (`/m/<id>?kiosk`): the machine page's route, the kiosk view (no tabs), the
+    // family and its kiosk view, if it has one.
+    const kiosk = closure(chunks, need(KIOSK_PAGE).file, closure(chunks, mod.file, new Set(machinePage)));
+    const extra = KIOSK_EXTRA_VIEWS[kind];
+    out.push(screen(`kiosk page: ${kind}`, extra ? closure(chunks, need(extra).file, kiosk) : kiosk));
   }
   out.push(screen('fleet page, live tiles: all five families', fleet));
   return out;

@@ -12,7 +12,6 @@ function fakeModule(kind: 'xtool' | 'duet', TileExtra?: () => never): Controller
   return {
     kind,
     label: kind === 'xtool' ? 'Fake laser' : 'Fake printer',
-    access: () => ({ role: 'viewer', command: false, label: 'read' }),
     createSession: (ctx: SessionContext): MachineSession => ({
       machine: ctx.machine,
       ctx,

@@ -12,7 +12,6 @@ function fakeModule(kind: MachineKind): ControllerModule {
   return {
     kind,
     label: kind,
-    access: () => ({ role: 'viewer', command: false, label: 'read' }),
     createSession: (ctx: SessionContext): MachineSession => ({
       machine: ctx.machine,
       ctx,

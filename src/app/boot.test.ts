@@ -13,7 +13,6 @@ function fakeModule(started: string[]): ControllerModule {
   return {
     kind: 'xtool',
     label: 'Fake laser',
-    access: () => ({ role: 'viewer', command: false, label: 'read' }),
     createSession: (ctx: SessionContext): MachineSession => ({
       machine: ctx.machine,
       ctx,

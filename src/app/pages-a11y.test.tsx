@@ -20,7 +20,6 @@ function fakeModule(): ControllerModule {
   return {
     kind: 'duet',
     label: 'Fake printer',
-    access: () => ({ role: 'viewer', command: false, label: 'read' }),
     createSession: (ctx: SessionContext): MachineSession => ({
       machine: ctx.machine,
       ctx,

@@ -19,14 +19,7 @@ export const controllerLoaders: Record<MachineKind, () => Promise<ControllerModu
   prunt: () => import('./prunt/module').then((m) => m.pruntModule),
 };
 
-/** Each family's name, as its declaration says it (a test keeps them equal). */
-export const FAMILY_LABELS: Record<MachineKind, string> = {
-  touchcut: 'Kinetic TouchCut',
-  g2core: 'g2core CNC',
-  duet: 'Duet (RepRapFirmware)',
-  xtool: 'xTool D-series',
-  prunt: 'Prunt',
-};
+export { FAMILY_LABELS } from './labels';
 
 /** Family-level pages outside any machine, routed at `/<kind>/<path>` (their code loads when shown). */
 export const familyPages: Array<{

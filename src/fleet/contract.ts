@@ -406,7 +406,15 @@ export interface TabDecl<S extends MachineSession> {
   role?: Role;
 }
 
-export interface ControllerModule<S extends MachineSession = MachineSession> extends FamilyDeclaration {
+/**
+ * A family's page code (`<kind>/module.tsx`). Its name and kind only of the declaration: the
+ * access rules and the gateway's hints are the console server's (they stay out of the page's
+ * bundle, issue 16).
+ */
+export interface ControllerModule<S extends MachineSession = MachineSession> extends Pick<
+  FamilyDeclaration,
+  'kind' | 'label'
+> {
   createSession(ctx: SessionContext): S;
   /** Tabs of the machine page; the first is the overview. */
   tabs: TabDecl<S>[];

@@ -1,7 +1,7 @@
 /**
  * First-screen sizes (issue 16), from the report the build writes (bundle-report/bundle.json):
- * gzip JS+CSS of each screen beside the issue's targets — fleet page ≤ 150 KiB, a (kiosk)
- * machine page ≤ 120 KiB. Sizes, not timings: the same on any machine for the same build.
+ * gzip JS+CSS of each screen beside the issue's targets — the fleet page's first screen ≤ 150 KiB,
+ * a kiosk machine page ≤ 120 KiB. Sizes, not timings: the same on any machine for the same build.
  * The ceilings `npm test` enforces are in tests/bundle/budgets.ts.
  *
  *     npm run bench -- bundle
@@ -15,7 +15,8 @@ import { report, round } from './util';
 const TARGETS: Array<{ screen: RegExp; kib: number }> = [
   // The live tiles' family code loads after the first screen, at idle: reported, no target.
   { screen: /^fleet page: first screen/, kib: 150 },
-  { screen: /^machine page/, kib: 120 },
+  // The issue's second target is a kiosk tablet's page (`/m/<id>?kiosk`).
+  { screen: /^kiosk page/, kib: 120 },
 ];
 
 ensureDist();

@@ -27,6 +27,7 @@ describe('bundle budget', () => {
     for (const kind of MACHINE_KINDS) {
       expect(names).toContain(`family: ${kind}`);
       expect(names).toContain(`machine page: ${kind}`);
+      expect(names).toContain(`kiosk page: ${kind}`);
     }
   });
 

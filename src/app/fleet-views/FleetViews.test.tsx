@@ -16,7 +16,6 @@ function fakeModule(kind: 'prunt' | 'touchcut'): ControllerModule {
   return {
     kind,
     label: kind,
-    access: () => ({ role: 'viewer', command: false, label: 'read' }),
     createSession: (ctx: SessionContext): MachineSession => ({
       machine: ctx.machine,
       ctx,

@@ -1,5 +1,5 @@
 import { defineController } from '../../fleet/contract';
-import { duetDeclaration } from './declaration';
+import { FAMILY_LABELS } from '../labels';
 import { DuetSession } from './session';
 import { LoginForm } from './views/Login';
 import { TileExtra } from './views/Tile';
@@ -12,7 +12,8 @@ const Overview = lazyView(() => import('./views/Overview'), 'Overview');
 const Plugins = lazyView(() => import('./views/Plugins'), 'Plugins');
 
 export const duetModule = defineController<DuetSession>({
-  ...duetDeclaration,
+  kind: 'duet',
+  label: FAMILY_LABELS.duet,
   createSession: (ctx) => new DuetSession(ctx),
   tabs: [
     { id: 'overview', label: 'Overview', Component: Overview },

@@ -1,5 +1,5 @@
 import { defineController } from '../../fleet/contract';
-import { g2coreDeclaration } from './declaration';
+import { FAMILY_LABELS } from '../labels';
 import { G2coreSession } from './session';
 import './views/g2core.css';
 import { G2coreTile } from './views/Tile';
@@ -13,7 +13,8 @@ const SettingsTab = lazyView(() => import('./views/Settings'), 'SettingsTab');
 
 /** The g2core controller module: session, tabs. The machine page adds Log and Simulator tabs. */
 export const g2coreModule = defineController<G2coreSession>({
-  ...g2coreDeclaration,
+  kind: 'g2core',
+  label: FAMILY_LABELS.g2core,
   createSession: (ctx) => new G2coreSession(ctx),
   tabs: [
     { id: 'overview', label: 'Machine', Component: OverviewTab },

@@ -28,6 +28,8 @@ export interface PruntConfigDeps {
   run: () => RunToken;
   /** The API generation the controller's status schema showed (null: not known yet). */
   api: () => PruntApi | null;
+  /** The editor's store, made by the session (its views read it before this code is loaded). */
+  store?: StoreApi<ConfigState>;
 }
 
 const API_WORDS: Record<PruntApi, string> = { module: 'module API', flat: 'flat API (2025)' };
@@ -44,11 +46,13 @@ function orphanWords(labels: string[]): string {
  * values are never polled: on the 2025 flat API every GET rewrites the config file.
  */
 export class PruntConfig {
-  readonly store: StoreApi<ConfigState> = createSharedStore<ConfigState>(initialConfigState);
+  readonly store: StoreApi<ConfigState>;
   private loading: { run: RunToken; done: Promise<void> } | null = null;
   private unwatch: (() => void) | null = null;
 
-  constructor(private readonly deps: PruntConfigDeps) {}
+  constructor(private readonly deps: PruntConfigDeps) {
+    this.store = deps.store ?? createSharedStore<ConfigState>(initialConfigState);
+  }
 
   /** Open the editor: schema + values (once; again after a save or a server restart). */
   open(): Promise<void> {

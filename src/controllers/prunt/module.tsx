@@ -1,5 +1,5 @@
 import { defineController } from '../../fleet/contract';
-import { pruntDeclaration } from './declaration';
+import { FAMILY_LABELS } from '../labels';
 import { PruntSession } from './session';
 import { lazyView } from '../../fleet/lazy';
 
@@ -11,7 +11,8 @@ const StatusTab = lazyView(() => import('./views/StatusTab'), 'StatusTab');
 
 /** The machine page adds the Log tab (the machine log carries the controller's Log lines). */
 export const pruntModule = defineController<PruntSession>({
-  ...pruntDeclaration,
+  kind: 'prunt',
+  label: FAMILY_LABELS.prunt,
   createSession: (ctx) => new PruntSession(ctx),
   tabs: [
     { id: 'overview', label: 'Overview', Component: OverviewTab },

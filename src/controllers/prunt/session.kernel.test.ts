@@ -233,6 +233,8 @@ describe('Prunt: nothing is written after stop', () => {
     const opening = t.session.openConfig();
     await vi.advanceTimersByTimeAsync(0);
     expect(t.session.config.getState().phase).toBe('loading');
+    // The editor's code is a chunk of its own: the schema is read once it is there.
+    await vi.waitFor(() => expect(t.session.config.getState().model).not.toBeNull());
     const model = t.session.config.getState().model;
     expect(model?.store.getState().loaded).toBe(false);
     t.session.stop();

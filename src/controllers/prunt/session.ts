@@ -5,10 +5,10 @@ import { describeError, LinkError } from '../../fleet/errors';
 import { createSharedStore, KernelSession, type RunToken } from '../../fleet/kernel';
 import type { Poller, SocketLink } from '../../fleet/link';
 import { UploadTracker } from '../../fleet/upload';
-import { defaultDraftStorage, type DraftStorage } from '../../forms/storage';
+import type { DraftStorage } from '../../forms/storage';
 import { PruntClient } from './client';
 import { declarePruntCommands, type PruntCommands } from './commands';
-import { PruntConfig } from './config';
+import type { PruntConfig } from './config';
 import { asLinkFault, isLinkFault, quickBackoff, quickRetry } from '../../fleet/faults';
 import { History } from './history';
 import { PruntLive } from './live';
@@ -16,6 +16,7 @@ import { ALWAYS_FRESH, PRUNT_KEYS } from './queries';
 import {
   divisorFor,
   FLEET_DIVISOR,
+  initialConfigState,
   initialPruntState,
   SILENCE_MS,
   type ConfigState,
@@ -56,7 +57,14 @@ export class PruntSession extends KernelSession {
   readonly history = new History(600);
   /** The file upload in progress or last finished (the console's one upload state). */
   readonly uploads = new UploadTracker();
-  readonly editor: PruntConfig;
+  /** The config editor's store: its views read it; the editor's code loads when it opens. */
+  readonly config: StoreApi<ConfigState> = createSharedStore<ConfigState>(initialConfigState);
+  /**
+   * The config editor (schema → form, drafts, save): the form engine is a chunk of its own, loaded
+   * when the editor first opens (issue 16: nothing else on a Prunt page needs it).
+   */
+  private editorLoad: Promise<PruntConfig> | null = null;
+  private readonly drafts: DraftStorage | undefined;
   readonly cmd: PruntCommands;
   readonly commands: Readonly<Record<string, AnyCommand>>;
   private readonly live: PruntLive;
@@ -74,15 +82,7 @@ export class PruntSession extends KernelSession {
   constructor(ctx: SessionContext, opts: PruntSessionOptions = {}) {
     super(ctx);
     this.client = opts.client ?? new PruntClient(ctx.machine.id);
-    this.editor = new PruntConfig({
-      machineId: ctx.machine.id,
-      client: this.client,
-      queries: ctx.queries,
-      drafts: opts.drafts ?? defaultDraftStorage(),
-      now: ctx.now,
-      run: () => this.run(),
-      api: () => this.store.getState().api,
-    });
+    this.drafts = opts.drafts;
     this.live = new PruntLive(ctx, this.store, this.history, this.tracker, () => this.serverRestarted());
     this.socket = this.stream(() => ({
       url: () => `${this.client.http.base}/websocket/everything`,
@@ -128,10 +128,6 @@ export class PruntSession extends KernelSession {
     const { cmd, all } = declarePruntCommands(this);
     this.cmd = cmd;
     this.commands = all;
-  }
-
-  get config(): StoreApi<ConfigState> {
-    return this.editor.store;
   }
 
   protected override onStart(): void {
@@ -269,16 +265,45 @@ export class PruntSession extends KernelSession {
 
   // --- Config ----------------------------------------------------------------------------------
 
+  /** The editor's code, loaded once (a failed load is tried again on the next call). */
+  private editor(): Promise<PruntConfig> {
+    this.editorLoad ??= Promise.all([import('./config'), import('../../forms/storage')]).then(
+      ([{ PruntConfig }, { defaultDraftStorage }]) =>
+        new PruntConfig({
+          machineId: this.ctx.machine.id,
+          client: this.client,
+          queries: this.ctx.queries,
+          drafts: this.drafts ?? defaultDraftStorage(),
+          now: this.ctx.now,
+          run: () => this.run(),
+          api: () => this.store.getState().api,
+          store: this.config,
+        }),
+      (e: unknown) => {
+        this.editorLoad = null;
+        const why = e instanceof Error ? e.message : String(e);
+        this.config.setState({
+          phase: 'error',
+          error: `The console could not load its config editor (${why}). Reload the page.`,
+        });
+        throw e;
+      },
+    );
+    return this.editorLoad;
+  }
+
   /** Open the editor: schema + values (once; again after a save or a server restart). */
-  openConfig(): Promise<void> {
-    return this.editor.open();
+  async openConfig(): Promise<void> {
+    // "Loading" at once, also while the editor's code is on its way.
+    if (this.config.getState().phase !== 'ready') this.config.setState({ phase: 'loading', error: null });
+    return (await this.editor()).open();
   }
 
-  loadConfig(notice: string | null): Promise<void> {
-    return this.editor.load(notice);
+  async loadConfig(notice: string | null): Promise<void> {
+    return (await this.editor()).load(notice);
   }
 
-  saveConfig(commandId: string): Promise<string> {
-    return this.editor.save(commandId);
+  async saveConfig(commandId: string): Promise<string> {
+    return (await this.editor()).save(commandId);
   }
 }

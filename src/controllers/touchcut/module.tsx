@@ -1,5 +1,5 @@
 import { defineController } from '../../fleet/contract';
-import { touchcutDeclaration } from './declaration';
+import { FAMILY_LABELS } from '../labels';
 import { TouchcutSession } from './session';
 import { LoginForm } from './views/LoginForm';
 import { ScreenThumbnail, ScreenView } from './views/ScreenView';
@@ -18,7 +18,8 @@ const StatusView = lazyView(() => import('./views/StatusView'), 'StatusView');
  * user's own password change).
  */
 export const touchcutModule = defineController<TouchcutSession>({
-  ...touchcutDeclaration,
+  kind: 'touchcut',
+  label: FAMILY_LABELS.touchcut,
   createSession: (ctx) => new TouchcutSession(ctx),
   tabs: [
     { id: 'status', label: 'Status', Component: StatusView },

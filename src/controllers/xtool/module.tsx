@@ -1,5 +1,5 @@
 import { defineController } from '../../fleet/contract';
-import { xtoolDeclaration } from './declaration';
+import { FAMILY_LABELS } from '../labels';
 import { XtoolSession } from './session';
 import { TileExtra } from './views/TileExtra';
 import { lazyView } from '../../fleet/lazy';
@@ -12,7 +12,8 @@ const Safety = lazyView(() => import('./views/Safety'), 'Safety');
 
 /** The browser side of the xTool D-series family: session, tabs, fleet tile extra (its "Find lasers" page is listed in ../index.ts). */
 export const xtoolModule = defineController<XtoolSession>({
-  ...xtoolDeclaration,
+  kind: 'xtool',
+  label: FAMILY_LABELS.xtool,
   createSession: (ctx) => new XtoolSession(ctx),
   tabs: [
     { id: 'overview', label: 'Status', Component: Overview },
