@@ -256,7 +256,10 @@ function TileBody({ info, rt }: { info: MachineInfo; rt: MachineRuntime }) {
       )}
       {Extra && rt.session && (
         <div className="tile-extra">
-          <Extra session={rt.session} />
+          {/* A family's tile extra may be a chunk of its own: nothing shows while it loads. */}
+          <Suspense fallback={null}>
+            <Extra session={rt.session} />
+          </Suspense>
         </div>
       )}
       <footer className="ui-row small">

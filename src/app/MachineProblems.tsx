@@ -1,8 +1,8 @@
-import type { ComponentType } from 'react';
+import { Suspense, type ComponentType } from 'react';
 import { linkWords, type MachineSession, type TabProps } from '../fleet/contract';
 import type { MachineRuntime } from '../fleet/fleet';
 import { useSnapshot } from '../fleet/react';
-import { Notice, Panel } from '../ui';
+import { Loading, Notice, Panel } from '../ui';
 import { RetryIn } from './Age';
 
 /**
@@ -35,7 +35,10 @@ export function MachineProblems({
       )}
       {s.link === 'needs-login' && LoginForm && session && (
         <Panel title="Log in to this machine">
-          <LoginForm session={session} />
+          {/* A family's login form may be a chunk of its own. */}
+          <Suspense fallback={<Loading />}>
+            <LoginForm session={session} />
+          </Suspense>
         </Panel>
       )}
       {rt.error && (

@@ -14,13 +14,14 @@ export const SIZE_BUDGETS_KIB: Array<{ screen: RegExp; kib: number }> = [
   // 163 → 141, the same two changes, and the access rules and gateway hints left to the server.
   { screen: /^machine page: /, kib: 141 },
   // A kiosk tablet's page (issue 16's ≤ 120 KiB target; not met yet, see the README).
-  { screen: /^kiosk page: /, kib: 142 },
+  { screen: /^kiosk page: /, kib: 141 },
   // The fleet page paints from the console server's readings before any family's code
   // (src/app/first-screen.ts): the shell and the fleet page.
   { screen: /^fleet page: first screen$/, kib: 117 },
   // Then the families' code, at idle, for live tiles: 225 → 206 with the two changes above.
-  // 206 → 190: Prunt's config-form engine loads when its editor opens, not with the family.
-  { screen: /^fleet page, live tiles: /, kib: 190 },
+  // 206 → 185: Prunt's config-form engine loads when its editor opens, TouchCut's and Duet's tile
+  // thumbnails and login forms when they show.
+  { screen: /^fleet page, live tiles: /, kib: 185 },
 ];
 
 /** The screens over their ceiling, in words (empty: all within budget). A screen without a ceiling is one too. */

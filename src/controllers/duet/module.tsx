@@ -1,8 +1,6 @@
 import { defineController } from '../../fleet/contract';
 import { FAMILY_LABELS } from '../labels';
 import { DuetSession } from './session';
-import { LoginForm } from './views/Login';
-import { TileExtra } from './views/Tile';
 import { lazyView } from '../../fleet/lazy';
 
 const Console = lazyView(() => import('./views/Console'), 'Console');
@@ -10,6 +8,9 @@ const Files = lazyView(() => import('./views/Files'), 'Files');
 const HeightMap = lazyView(() => import('./views/HeightMap'), 'HeightMap');
 const Overview = lazyView(() => import('./views/Overview'), 'Overview');
 const Plugins = lazyView(() => import('./views/Plugins'), 'Plugins');
+// The tile's thumbnail and the login form: chunks of their own, loaded where they show.
+const TileExtra = lazyView(() => import('./views/Tile'), 'TileExtra');
+const LoginForm = lazyView(() => import('./views/Login'), 'LoginForm');
 
 export const duetModule = defineController<DuetSession>({
   kind: 'duet',

@@ -1,8 +1,6 @@
 import { defineController } from '../../fleet/contract';
 import { FAMILY_LABELS } from '../labels';
 import { TouchcutSession } from './session';
-import { LoginForm } from './views/LoginForm';
-import { ScreenThumbnail, ScreenView } from './views/ScreenView';
 import './views/touchcut.css';
 import { lazyView } from '../../fleet/lazy';
 
@@ -11,6 +9,10 @@ const UnloaderView = lazyView(() => import('./views/DataViews'), 'UnloaderView')
 const MonitorView = lazyView(() => import('./views/MonitorView'), 'MonitorView');
 const StatsView = lazyView(() => import('./views/StatsView'), 'StatsView');
 const StatusView = lazyView(() => import('./views/StatusView'), 'StatusView');
+const ScreenView = lazyView(() => import('./views/ScreenView'), 'ScreenView');
+// The tile's thumbnail and the login form: chunks of their own, loaded where they show.
+const ScreenThumbnail = lazyView(() => import('./views/ScreenView'), 'ScreenThumbnail');
+const LoginForm = lazyView(() => import('./views/LoginForm'), 'LoginForm');
 
 /**
  * Kinetic TouchCut: status, monitor, production statistics, programs, unloader and the live
