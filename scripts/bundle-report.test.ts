@@ -31,6 +31,7 @@ function build(): { chunks: ChunkInfo[]; css: AssetInfo[] } {
     chunk('fleet.js', 5, { facade: 'src/app/FleetPage.tsx', imports: ['react.js'] }),
     chunk('machine.js', 6, { facade: 'src/app/MachinePage.tsx' }),
     chunk('kiosk.js', 3, { facade: 'src/app/kiosk/KioskPage.tsx' }),
+    chunk('topbar.js', 2, { facade: 'src/app/TopBar.tsx' }),
     chunk('overrides.js', 1, { facade: 'src/controllers/g2core/views/Overrides.tsx' }),
     chunk('query.js', 11),
   ];
@@ -59,16 +60,16 @@ describe('bundle report', () => {
     // The family's module and query-core; zod is the shell's already.
     expect(s['family: xtool']).toBe(10 + 11);
     // Shell, machine page, family, query, first tab and its CSS.
-    expect(s['machine page: xtool']).toBe(174 + 6 + 10 + 11 + 2 + 1);
+    expect(s['machine page: xtool']).toBe(174 + 6 + 2 + 10 + 11 + 2 + 1);
     // A kiosk: the machine page's route and the kiosk view, no tab; g2core's with its kiosk view.
     expect(s['kiosk page: xtool']).toBe(174 + 6 + 3 + 10 + 11);
     expect(s['kiosk page: g2core']).toBe(174 + 6 + 3 + 10 + 11 + 1);
     // A shop of lasers only: shell, fleet page, one family and query.
-    expect(s['fleet page, live tiles: xtool machines only']).toBe(174 + 5 + 10 + 11);
+    expect(s['fleet page, live tiles: xtool machines only']).toBe(174 + 5 + 2 + 10 + 11);
     // The fleet page's first screen: the shell and the fleet page, no family.
-    expect(s['fleet page: first screen']).toBe(174 + 5);
+    expect(s['fleet page: first screen']).toBe(174 + 5 + 2);
     // Shell, fleet page, five families, query once.
-    expect(s['fleet page, live tiles: all five families']).toBe(174 + 5 + 5 * 10 + 11);
+    expect(s['fleet page, live tiles: all five families']).toBe(174 + 5 + 2 + 5 * 10 + 11);
   });
 
   it('fails loudly when a family or page has no chunk of its own', () => {

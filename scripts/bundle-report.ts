@@ -27,6 +27,8 @@ export const familyModule = (kind: MachineKind): string => `src/controllers/${ki
 const FLEET_PAGE = 'src/app/FleetPage.tsx';
 const MACHINE_PAGE = 'src/app/MachinePage.tsx';
 const KIOSK_PAGE = 'src/app/kiosk/KioskPage.tsx';
+/** The top bar: with every page but a kiosk tablet's. */
+const TOP_BAR = 'src/app/TopBar.tsx';
 /** The view a family's kiosk page shows below its controls (src/app/kiosk/per-family.ts). */
 export const KIOSK_EXTRA_VIEWS: Partial<Record<MachineKind, string>> = {
   g2core: 'src/controllers/g2core/views/Overrides.tsx',
@@ -100,12 +102,17 @@ export function screensOf(chunkList: ChunkInfo[], css: AssetInfo[]): Screen[] {
   };
   const shell = closure(chunks, entry.file);
   const out: Screen[] = [screen('shell', shell)];
-  const fleetShell = closure(chunks, need(FLEET_PAGE).file, new Set(shell));
+  const fleetShell = closure(
+    chunks,
+    need(FLEET_PAGE).file,
+    closure(chunks, need(TOP_BAR).file, new Set(shell)),
+  );
   // The fleet page paints its tiles from the console server's readings (src/app/first-screen.ts)
   // before any family's code; the families' code then loads at idle and makes the tiles live.
   out.push(screen('fleet page: first screen', fleetShell));
   const fleet = new Set(fleetShell);
-  const machinePage = closure(chunks, need(MACHINE_PAGE).file, new Set(shell));
+  const machineRoute = closure(chunks, need(MACHINE_PAGE).file, new Set(shell));
+  const machinePage = closure(chunks, need(TOP_BAR).file, new Set(machineRoute));
   for (const kind of MACHINE_KINDS) {
     const mod = need(familyModule(kind));
     const withFamily = closure(chunks, mod.file, new Set(shell));
@@ -119,7 +126,7 @@ export function screensOf(chunkList: ChunkInfo[], css: AssetInfo[]): Screen[] {
     out.push(screen(`machine page: ${kind}`, closure(chunks, need(FIRST_TAB_VIEWS[kind]).file, page)));
     // A kiosk tablet (`/m/<id>?kiosk`): the machine page's route, the kiosk view (no tabs), the
     // family and its kiosk view, if it has one.
-    const kiosk = closure(chunks, need(KIOSK_PAGE).file, closure(chunks, mod.file, new Set(machinePage)));
+    const kiosk = closure(chunks, need(KIOSK_PAGE).file, closure(chunks, mod.file, new Set(machineRoute)));
     const extra = KIOSK_EXTRA_VIEWS[kind];
     out.push(screen(`kiosk page: ${kind}`, extra ? closure(chunks, need(extra).file, kiosk) : kiosk));
   }

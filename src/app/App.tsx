@@ -3,10 +3,10 @@ import { useStore } from 'zustand';
 import { familyPages } from '../controllers';
 import { authStore } from '../fleet/auth';
 import { EmptyState, Loading } from '../ui';
-import { lazyView, whenIdle } from '../fleet/lazy';
+import { lazyView } from '../fleet/lazy';
 import { alarmSummary } from './alarms/summary';
-import { AuthMenu } from './auth/UserControls';
 import { ErrorBoundary } from './ErrorBoundary';
+import { afterFirstScreen } from './first-screen';
 import { AlarmsPage, AuditPage, FleetPage, HistoryPage, LoginPage, MachinePage, WallPage } from './pages';
 import { Link, matchRoute, useLocation } from './router';
 import { Shortcuts } from './shortcuts/lazy';
@@ -14,34 +14,20 @@ import { Shortcuts } from './shortcuts/lazy';
 // The alarm layer (banner, modal alert, the list it follows): loaded once the first screen shows.
 const AlarmModal = lazyView(() => import('./alarms/layer'), 'AlarmModal');
 const AlarmStrip = lazyView(() => import('./alarms/layer'), 'AlarmStrip');
-
-type ThemeChoice = 'system' | 'light' | 'dark';
-
-function useTheme(): [ThemeChoice, (t: ThemeChoice) => void] {
-  const [theme, setTheme] = useState<ThemeChoice>(() => {
-    const t = localStorage.getItem('shopdeck.theme');
-    return t === 'light' || t === 'dark' ? t : 'system';
-  });
-  useEffect(() => {
-    if (theme === 'system') document.documentElement.removeAttribute('data-theme');
-    else document.documentElement.setAttribute('data-theme', theme);
-    localStorage.setItem('shopdeck.theme', theme);
-  }, [theme]);
-  return [theme, setTheme];
-}
+const TopBar = lazyView(() => import('./TopBar'), 'TopBar');
 
 export function App() {
   const { pathname, search } = useLocation();
   const route = matchRoute(pathname, search);
   // Kiosk tablet (`/m/<id>?kiosk`): one machine, nothing to navigate away with (src/app/kiosk/).
   const kiosk = route.name === 'machine' && route.kiosk === true;
-  const [theme, setTheme] = useTheme();
   const mode = useStore(authStore, (s) => s.mode);
   const user = useStore(authStore, (s) => s.user);
   const openOnNetwork = useStore(authStore, (s) => s.openOnNetwork === true);
-  // The alarm centre on every page, from when the browser is first idle.
+  // The alarm centre on every page, from when the browser is idle after the first screen (the
+  // tiles, or the machine in view answering; a few seconds at most).
   const [alarmsOn, setAlarmsOn] = useState(false);
-  useEffect(() => whenIdle(() => setAlarmsOn(true)), []);
+  useEffect(() => afterFirstScreen(() => setAlarmsOn(true)), []);
   const blocking = useStore(alarmSummary, (s) => s.blocking);
   const activeAlarms = useStore(alarmSummary, (s) => s.unacknowledged);
 
@@ -92,52 +78,12 @@ export function App() {
     <div className={kiosk ? 'app kiosk' : 'app'}>
       {/* A blocking alarm makes the whole page behind it inert: no click, no focus, no reading. */}
       <div className="app-page" inert={blocking > 0} data-testid="app-page">
-        <header className="topbar" hidden={kiosk}>
-          <Link to="/" className="brand" aria-label="Shopdeck fleet">
-            <img src="/favicon.svg" alt="" width={26} height={26} />
-            Shopdeck
-          </Link>
-          <nav className="topnav" aria-label="Main">
-            <Link to="/" className={route.name === 'fleet' ? 'active' : ''}>
-              Fleet
-            </Link>
-            <Link to="/alarms" className={route.name === 'alarms' ? 'active' : ''} data-testid="nav-alarms">
-              Alarms
-              {activeAlarms > 0 && (
-                <span className="nav-count" aria-label={`${activeAlarms} unacknowledged`}>
-                  {activeAlarms}
-                </span>
-              )}
-            </Link>
-            <Link to="/history" className={route.name === 'history' ? 'active' : ''}>
-              History
-            </Link>
-            <Link to="/audit" className={route.name === 'audit' ? 'active' : ''}>
-              Audit
-            </Link>
-            {familyPages.map((p) => (
-              <Link key={`${p.kind}/${p.path}`} to={`/${p.kind}/${p.path}`}>
-                {p.label}
-              </Link>
-            ))}
-          </nav>
-          <div className="topbar-right">
-            <label className="theme-pick">
-              <span className="sr-only">Theme</span>
-              <select
-                className="ui-input"
-                value={theme}
-                onChange={(e) => setTheme(e.target.value as ThemeChoice)}
-                aria-label="Theme"
-              >
-                <option value="system">Theme: system</option>
-                <option value="light">Theme: light</option>
-                <option value="dark">Theme: dark</option>
-              </select>
-            </label>
-            <AuthMenu />
-          </div>
-        </header>
+        {/* The top bar is a chunk of its own: a kiosk tablet never loads it (issue 16). */}
+        {!kiosk && (
+          <Suspense fallback={<header className="topbar" aria-hidden="true" />}>
+            <TopBar route={route.name} activeAlarms={activeAlarms} />
+          </Suspense>
+        )}
         {alarmsOn && (
           <ErrorBoundary label="Alarms">
             <Suspense fallback={null}>
@@ -174,10 +120,13 @@ export function App() {
           </Suspense>
         </ErrorBoundary>
       )}
-      {/* Keyboard shortcuts (`?` lists them): code of their own, loaded after the first screen. */}
-      <Suspense fallback={null}>
-        <Shortcuts />
-      </Suspense>
+      {/* Keyboard shortcuts (`?` lists them): code of their own, loaded with the page (on a kiosk
+          tablet, which has no keyboard as a rule, after its first screen). */}
+      {(alarmsOn || !kiosk) && (
+        <Suspense fallback={null}>
+          <Shortcuts />
+        </Suspense>
+      )}
     </div>
   );
 }

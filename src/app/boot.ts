@@ -17,7 +17,7 @@ import { MACHINE_KINDS, type MachineInfo, type MachineKind } from '../fleet/type
 import { CONSOLE_HEADERS } from '../fleet/origin';
 import { startReadSocket } from '../fleet/read-socket';
 import { fetchSession, trackActivity } from './auth/api';
-import { onFirstScreen, readWatch } from './first-screen';
+import { firstScreenShown, onFirstScreen, readWatch } from './first-screen';
 import { untilReachable } from './pwa/reach';
 import { onLocationChange } from './router';
 
@@ -104,6 +104,20 @@ export async function boot(): Promise<void> {
       );
   };
   const inView = created.find((rt) => rt.info.id === machineInView());
+  // A machine's page has its first screen once that machine has answered (or could not: any
+  // state but "connecting"), or a few seconds at the latest: what waits for it then loads
+  // (first-screen.ts: the alarm layer, the shortcuts, the service worker).
+  if (inView) {
+    const stopWatching = inView.snapshot.subscribe((s) => {
+      if (s.link !== 'connecting') shown();
+    });
+    const shownTimer = setTimeout(shown, OTHERS_AFTER_MS);
+    function shown(): void {
+      stopWatching();
+      clearTimeout(shownTimer);
+      firstScreenShown();
+    }
+  } else if (location.pathname !== '/') firstScreenShown();
   if (inView && kioskInView()) {
     start([inView]);
     const stop = onLocationChange(() => {

@@ -1,5 +1,6 @@
 import { z } from 'zod/mini';
 import type { Activity, Alarm, JobSummary, MachineInfo, MachineSnapshot } from '../fleet/types';
+import { whenIdle } from '../fleet/lazy';
 import { cardFields } from './status';
 
 /**
@@ -117,4 +118,32 @@ export function onFirstScreen(fn: () => void): () => void {
   }
   waiting.add(fn);
   return () => waiting.delete(fn);
+}
+
+/**
+ * Runs `fn` when the browser is idle after the first screen (the fleet's tiles, or the machine in
+ * view answering), or after `maxWaitMs` at the latest (a page whose first screen never comes, a
+ * login page). What a first screen does not need waits for it: the alarm layer, the keyboard
+ * shortcuts, the service worker. Returns: cancel.
+ */
+export function afterFirstScreen(fn: () => void, maxWaitMs = 4000): () => void {
+  let done = false;
+  let cancelIdle: (() => void) | null = null;
+  const run = (): void => {
+    if (done) return;
+    done = true;
+    cancel();
+    clearTimeout(timer);
+    fn();
+  };
+  const cancel = onFirstScreen(() => {
+    cancelIdle = whenIdle(run);
+  });
+  const timer = setTimeout(run, maxWaitMs);
+  return () => {
+    done = true;
+    cancel();
+    cancelIdle?.();
+    clearTimeout(timer);
+  };
 }

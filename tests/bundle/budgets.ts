@@ -9,12 +9,13 @@ import type { Screen } from '../../scripts/bundle-report';
 export const SIZE_BUDGETS_KIB: Array<{ screen: RegExp; kib: number }> = [
   // 130 → 110: @tanstack/query-core replaced by the kernel's own query cache (−6.5 KiB) and the
   // page's schemas on zod/mini (−15 KiB).
-  { screen: /^shell$/, kib: 110 },
+  // 110 → 107: the top bar is a chunk of its own (a kiosk tablet never loads it).
+  { screen: /^shell$/, kib: 107 },
   { screen: /^family: /, kib: 28 },
   // 163 → 141, the same two changes, and the access rules and gateway hints left to the server.
   { screen: /^machine page: /, kib: 141 },
   // A kiosk tablet's page (issue 16's ≤ 120 KiB target; not met yet, see the README).
-  { screen: /^kiosk page: /, kib: 141 },
+  { screen: /^kiosk page: /, kib: 139 },
   // The fleet page paints from the console server's readings before any family's code
   // (src/app/first-screen.ts): the shell and the fleet page.
   { screen: /^fleet page: first screen$/, kib: 117 },
