@@ -4,7 +4,7 @@ import { join } from 'node:path';
 import { z } from 'zod';
 import { alarmRecordSchema, type AlarmRecord } from '../src/fleet/alarm-record';
 import type { WatchAlarm, WatchSummary } from '../src/fleet/contract';
-import type { AlarmSeverity } from '../src/fleet/types';
+import { SEVERITY_RANK, type AlarmSeverity } from '../src/fleet/types';
 import type { Logger } from './log';
 import { SettingsStore } from './settings';
 import { Webhook } from './webhook';
@@ -55,7 +55,6 @@ export interface AlarmCentreOptions {
 export const OFFLINE_KEY = 'offline-during-job';
 /** An acknowledgement given before the watch saw the alarm (a page saw it first) waits this long. */
 const EARLY_ACK_MS = 10_000;
-const SEVERITY_RANK: Record<AlarmSeverity, number> = { critical: 2, warning: 1, info: 0 };
 const MAX_TEXT = 500;
 
 const fileSchema = z.object({

@@ -1,12 +1,12 @@
 import { listPins, pinInfo } from './tls-pin';
 import { type IncomingMessage, type ServerResponse } from 'node:http';
 import { z } from 'zod';
-import { roleAtLeast } from '../src/fleet/types';
+import { mostSevereAlarm, roleAtLeast, type ServerWatch } from '../src/fleet/types';
 import { auditQueryFrom, toCsv } from './audit';
 import { LoginHistory, SESSION_COOKIE, type LimitKey } from './auth';
 import { discoverXtool } from './discovery';
 import { clientAddress, parseCookies, readJson, sendJson } from './http-util';
-import type { WatchAlarm, WatchSummary } from '../src/fleet/contract';
+import type { WatchSummary } from '../src/fleet/contract';
 import { machineInfo } from './machines';
 import { createSimApi, SIM_API_PATH } from './sim-api';
 import { PIN_RULE, checkSecret } from './users';
@@ -64,16 +64,6 @@ export interface Watched {
   lastSeen: number | null;
 }
 
-const SEVERITY_RANK = { info: 0, warning: 1, critical: 2 } as const;
-
-/** The highest severity among the alarms the watch read (warning when it did not say). */
-function mostSevere(alarms: readonly WatchAlarm[]): WatchAlarm['severity'] {
-  let best: WatchAlarm['severity'] | null = null;
-  for (const a of alarms)
-    if (best === null || SEVERITY_RANK[a.severity] > SEVERITY_RANK[best]) best = a.severity;
-  return best ?? 'warning';
-}
-
 /** Longest text of a controller's the machines list carries (a job name, an alarm). */
 const WATCH_TEXT_MAX = 200;
 
@@ -86,16 +76,19 @@ export function watchForPage(
   w: Watched | null,
   now: number,
   scrub: (text: string) => string,
-): Record<string, unknown> | undefined {
-  if (!w || w.summary.state === 'unknown') return undefined;
-  const text = (t: string | null): string | null => (t === null ? null : scrub(t).slice(0, WATCH_TEXT_MAX));
+): ServerWatch | undefined {
+  if (!w) return undefined;
   const s = w.summary;
+  const { state } = s;
+  if (state === 'unknown') return undefined;
+  const text = (t: string | null): string | null => (t === null ? null : scrub(t).slice(0, WATCH_TEXT_MAX));
   return {
-    state: s.state,
+    state,
     job: text(s.job),
     progress: typeof s.progress === 'number' && s.progress >= 0 && s.progress <= 1 ? s.progress : null,
     alarm: text(s.alarm),
-    alarmSeverity: s.alarm === null ? null : mostSevere(s.alarms ?? []),
+    // The worst of the alarms the watch read (a warning when it did not say).
+    alarmSeverity: s.alarm === null ? null : (mostSevereAlarm(s.alarms ?? [])?.severity ?? 'warning'),
     ageMs: w.lastSeen === null ? null : Math.max(0, now - w.lastSeen),
   };
 }

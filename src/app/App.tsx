@@ -26,8 +26,8 @@ export function App() {
   const openOnNetwork = useStore(authStore, (s) => s.openOnNetwork === true);
   // The alarm centre on every page, from when the browser is idle after the first screen (the
   // tiles, or the machine in view answering; a few seconds at most).
-  const [alarmsOn, setAlarmsOn] = useState(false);
-  useEffect(() => afterFirstScreen(() => setAlarmsOn(true)), []);
+  const [settled, setSettled] = useState(false);
+  useEffect(() => afterFirstScreen(() => setSettled(true)), []);
   const blocking = useStore(alarmSummary, (s) => s.blocking);
   const activeAlarms = useStore(alarmSummary, (s) => s.unacknowledged);
 
@@ -84,7 +84,7 @@ export function App() {
             <TopBar route={route.name} activeAlarms={activeAlarms} />
           </Suspense>
         )}
-        {alarmsOn && (
+        {settled && (
           <ErrorBoundary label="Alarms">
             <Suspense fallback={null}>
               <AlarmStrip hideOn={route.name === 'machine' ? route.id : null} kiosk={kiosk} />
@@ -113,7 +113,7 @@ export function App() {
           </main>
         )}
       </div>
-      {alarmsOn && (
+      {settled && (
         <ErrorBoundary label="Alarms">
           <Suspense fallback={null}>
             <AlarmModal />
@@ -122,7 +122,7 @@ export function App() {
       )}
       {/* Keyboard shortcuts (`?` lists them): code of their own, loaded with the page (on a kiosk
           tablet, which has no keyboard as a rule, after its first screen). */}
-      {(alarmsOn || !kiosk) && (
+      {(settled || !kiosk) && (
         <Suspense fallback={null}>
           <Shortcuts />
         </Suspense>

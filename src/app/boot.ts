@@ -11,13 +11,12 @@ import {
   registerRuntime,
   type MachineRuntime,
 } from '../fleet/fleet';
-import { whenIdle } from '../fleet/lazy';
 import { backoffDelay } from '../fleet/link';
 import { MACHINE_KINDS, type MachineInfo, type MachineKind } from '../fleet/types';
 import { CONSOLE_HEADERS } from '../fleet/origin';
 import { startReadSocket } from '../fleet/read-socket';
 import { fetchSession, trackActivity } from './auth/api';
-import { firstScreenShown, onFirstScreen, readWatch } from './first-screen';
+import { afterFirstScreen, firstScreenShown, readWatch } from './first-screen';
 import { untilReachable } from './pwa/reach';
 import { onLocationChange } from './router';
 
@@ -104,9 +103,10 @@ export async function boot(): Promise<void> {
       );
   };
   const inView = created.find((rt) => rt.info.id === machineInView());
-  // A machine's page has its first screen once that machine has answered (or could not: any
-  // state but "connecting"), or a few seconds at the latest: what waits for it then loads
-  // (first-screen.ts: the alarm layer, the shortcuts, the service worker).
+  // The first screen (first-screen.ts): on a machine's page, once that machine has answered (or
+  // could not: any state but "connecting"), or a few seconds at the latest; on the fleet page,
+  // once its tiles show (FleetPage); elsewhere at once. What it does not need waits for it: the
+  // other families' code, the alarm layer, the service worker.
   if (inView) {
     const stopWatching = inView.snapshot.subscribe((s) => {
       if (s.link !== 'connecting') shown();
@@ -126,38 +126,14 @@ export async function boot(): Promise<void> {
       start(created);
     });
   } else if (inView) {
+    // The machine in view's family first, the others when the browser is idle after it answered.
     start(created.filter((rt) => rt.info.kind === inView.info.kind));
-    let done = false;
-    const rest = (): void => {
-      if (done) return;
-      done = true;
-      start(created);
-    };
-    // Once the machine in view shows its data (or could not: any answer but "connecting"), or
-    // after a few seconds at the latest, and then when the browser is idle.
-    const stop = inView.snapshot.subscribe((s) => {
-      if (s.link !== 'connecting') later();
-    });
-    const timer = setTimeout(() => later(), OTHERS_AFTER_MS);
-    function later(): void {
-      stop();
-      clearTimeout(timer);
-      whenIdle(rest);
-    }
+    afterFirstScreen(() => start(created), 2 * OTHERS_AFTER_MS);
   } else if (location.pathname === '/') {
-    // The fleet page paints first, from the server's readings in the machines list
-    // (first-screen.ts); the families' code loads when the browser is idle after that (or after
-    // a few seconds at the latest: a page that never shows its tiles still starts its machines).
-    let done = false;
-    const all = (): void => {
-      if (done) return;
-      done = true;
-      cancel();
-      clearTimeout(timer);
-      start(created);
-    };
-    const cancel = onFirstScreen(() => whenIdle(all));
-    const timer = setTimeout(all, OTHERS_AFTER_MS);
+    // The fleet page paints first, from the server's readings in the machines list; the families'
+    // code loads when the browser is idle after that (or after a few seconds at the latest: a
+    // page that never shows its tiles still starts its machines).
+    afterFirstScreen(() => start(created), OTHERS_AFTER_MS);
   } else start(created);
   window.addEventListener('pagehide', () => {
     for (const rt of allRuntimes()) rt.session?.stop();

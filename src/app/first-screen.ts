@@ -1,5 +1,5 @@
 import { z } from 'zod/mini';
-import type { Activity, Alarm, JobSummary, MachineInfo, MachineSnapshot } from '../fleet/types';
+import type { Activity, Alarm, JobSummary, MachineInfo, MachineSnapshot, ServerWatch } from '../fleet/types';
 import { whenIdle } from '../fleet/lazy';
 import { cardFields } from './status';
 
@@ -15,7 +15,7 @@ import { cardFields } from './status';
 const SEVERITIES = ['critical', 'warning', 'info'] as const;
 
 /** One machine's `watch` in the machines list (read per machine: a bad one is dropped alone). */
-export const watchSchema = z.object({
+export const watchSchema: z.ZodMiniType<ServerWatch> = z.object({
   state: z.enum(['running', 'paused', 'idle', 'alarm', 'offline']),
   job: z.nullable(z.string()),
   progress: z.nullable(z.number()),
@@ -23,8 +23,6 @@ export const watchSchema = z.object({
   alarmSeverity: z.optional(z.nullable(z.enum(SEVERITIES))),
   ageMs: z.nullable(z.number()),
 });
-
-export type ServerWatch = z.infer<typeof watchSchema>;
 
 /** The machine's `watch` if it reads as one (anything else: none, the card waits for its session). */
 export function readWatch(raw: unknown): ServerWatch | undefined {

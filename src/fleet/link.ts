@@ -322,11 +322,15 @@ export class SocketLink {
     return this.ws !== null && this.ws.readyState === 1;
   }
 
+  private opened = 0;
+
   /** Counts the sockets this link opened: what was said on one socket belongs to it only. */
-  generation = 0;
+  get generation(): number {
+    return this.opened;
+  }
 
   connect(): void {
-    this.generation++;
+    this.opened++;
     this.closedByUs = false;
     if (this.timer) clearTimeout(this.timer);
     this.timer = null;

@@ -26,14 +26,19 @@ export interface MachineInfo {
    * What the console server's watch last read of it, sent with the machines list: the fleet
    * page's first screen before its session answers (src/app/first-screen.ts).
    */
-  watch?: {
-    state: 'running' | 'paused' | 'idle' | 'alarm' | 'offline';
-    job: string | null;
-    progress: number | null;
-    alarm: string | null;
-    alarmSeverity?: AlarmSeverity | null | undefined;
-    ageMs: number | null;
-  };
+  watch?: ServerWatch;
+}
+
+/** A machine's state as the console server's watch last read it (`watch` in `GET /api/machines`). */
+export interface ServerWatch {
+  state: 'running' | 'paused' | 'idle' | 'alarm' | 'offline';
+  job: string | null;
+  /** 0..1 */
+  progress: number | null;
+  alarm: string | null;
+  alarmSeverity?: AlarmSeverity | null | undefined;
+  /** How long before the list was sent (ms): an age, not a clock time. */
+  ageMs: number | null;
 }
 
 export const ROLES = ['viewer', 'operator', 'supervisor'] as const;
@@ -129,10 +134,11 @@ export function emptySnapshot(id: string): MachineSnapshot {
   };
 }
 
-const SEVERITY_RANK: Record<AlarmSeverity, number> = { info: 0, warning: 1, critical: 2 };
+/** Alarm severities in order: the page, the alarm centre and the machines list rank by it. */
+export const SEVERITY_RANK: Record<AlarmSeverity, number> = { info: 0, warning: 1, critical: 2 };
 
-export function mostSevereAlarm(alarms: readonly Alarm[]): Alarm | null {
-  let best: Alarm | null = null;
+export function mostSevereAlarm<T extends { severity: AlarmSeverity }>(alarms: readonly T[]): T | null {
+  let best: T | null = null;
   for (const a of alarms) {
     if (!best || SEVERITY_RANK[a.severity] > SEVERITY_RANK[best.severity]) best = a;
   }
