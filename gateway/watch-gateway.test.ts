@@ -269,6 +269,16 @@ describe('the alarm centre, with no page open', () => {
     // No login: no list (and no reading).
     const anon = await consoleFetch(`${gw.url}/api/machines`);
     expect(anon.status).toBe(401);
+    // Another site's page with Vera's cookie (a fetch, a frame): refused, nothing of the reading.
+    for (const headers of [
+      { cookie: vera, 'Sec-Fetch-Site': 'cross-site' },
+      { cookie: vera, 'Sec-Fetch-Site': 'same-site' },
+      { cookie: vera, Origin: 'http://evil.example' },
+    ]) {
+      const r = await fetch(`${gw.url}/api/machines`, { headers });
+      expect(r.status).toBe(403);
+      expect(await r.text()).not.toMatch(/flame|"watch"/i);
+    }
   });
 
   it('refuses a forged acknowledgement: another site, no login, a machine the user may not use', async () => {

@@ -115,9 +115,12 @@ describe('boot', () => {
 
   it('the fleet page paints from the server readings first; the families load after it', async () => {
     history.replaceState(null, '', '/');
+    // A fresh page: the earlier tests' pages had their first screens already.
+    vi.resetModules();
+    const { controllerLoaders: loaders } = await import('../controllers');
     const order: string[] = [];
-    controllerLoaders.touchcut = () => (order.push('touchcut'), Promise.resolve(fakeModule('touchcut')));
-    controllerLoaders.prunt = () => (order.push('prunt'), Promise.resolve(fakeModule('prunt')));
+    loaders.touchcut = () => (order.push('touchcut'), Promise.resolve(fakeModule('touchcut')));
+    loaders.prunt = () => (order.push('prunt'), Promise.resolve(fakeModule('prunt')));
     vi.stubGlobal(
       'fetch',
       vi.fn((url: string) =>
@@ -154,8 +157,9 @@ describe('boot', () => {
     expect(machines.find((m) => m.id === 'fs-table')?.watch).toMatchObject({ state: 'running', job: 'A.nc' });
     expect(machines.find((m) => m.id === 'fs-printer')).toMatchObject({ name: 'Printer' });
     expect(machines.find((m) => m.id === 'fs-printer')?.watch).toBeUndefined();
-    // No family's code before the first screen is up.
-    await new Promise((r) => setTimeout(r, 300));
+    // No family's code before the first screen is up (longer than an idle wait, shorter than the
+    // few seconds after which the machines start anyway).
+    await new Promise((r) => setTimeout(r, 2000));
     expect(order).toEqual([]);
     firstScreenShown();
     await vi.waitFor(() => expect([...order].sort()).toEqual(['prunt', 'touchcut']), { timeout: 3000 });
