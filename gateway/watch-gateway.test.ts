@@ -270,11 +270,12 @@ describe('the alarm centre, with no page open', () => {
     const anon = await consoleFetch(`${gw.url}/api/machines`);
     expect(anon.status).toBe(401);
     // Another site's page with Vera's cookie (a fetch, a frame): refused, nothing of the reading.
-    for (const headers of [
+    const forged: Array<Record<string, string>> = [
       { cookie: vera, 'Sec-Fetch-Site': 'cross-site' },
       { cookie: vera, 'Sec-Fetch-Site': 'same-site' },
       { cookie: vera, Origin: 'http://evil.example' },
-    ]) {
+    ];
+    for (const headers of forged) {
       const r = await fetch(`${gw.url}/api/machines`, { headers });
       expect(r.status).toBe(403);
       expect(await r.text()).not.toMatch(/flame|"watch"/i);
