@@ -59,6 +59,8 @@ export class RrfSimulator implements Simulator {
   password: string | null;
   /** HTTP requests received ("GET /rr_model"), for tests. */
   readonly requests: string[] = [];
+  /** The `seq` each `rr_reply` asked for ("" without one), for tests: RRF itself ignores it. */
+  readonly replyAsks: string[] = [];
   private readonly now: () => number;
   private readonly sessions = new Map<string, RrSession>();
   private readonly seqs: Record<string, number> = {};
@@ -194,6 +196,8 @@ export class RrfSimulator implements Simulator {
         return jsonResponse({ buff: GCODE_BUFFER });
       }
       case '/rr_reply': {
+        this.replyAsks.push(query.get('seq') ?? '');
+        if (this.replyAsks.length > 500) this.replyAsks.shift();
         const text = session.reply.join('\n');
         session.reply = [];
         return textResponse(text);
