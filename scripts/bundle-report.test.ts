@@ -61,9 +61,11 @@ describe('bundle report', () => {
     expect(s['family: xtool']).toBe(10 + 11);
     // Shell, machine page, family, query, first tab and its CSS.
     expect(s['machine page: xtool']).toBe(174 + 6 + 2 + 10 + 11 + 2 + 1);
-    // A kiosk: the machine page's route and the kiosk view, no tab; g2core's with its kiosk view.
-    expect(s['kiosk page: xtool']).toBe(174 + 6 + 3 + 10 + 11);
-    expect(s['kiosk page: g2core']).toBe(174 + 6 + 3 + 10 + 11 + 1);
+    // A kiosk's first screen: the machine page's route and the kiosk view, no family.
+    expect(s['kiosk page: first screen']).toBe(174 + 6 + 3);
+    // Live: with the family, no tab; g2core's with its kiosk view.
+    expect(s['kiosk page, live: xtool']).toBe(174 + 6 + 3 + 10 + 11);
+    expect(s['kiosk page, live: g2core']).toBe(174 + 6 + 3 + 10 + 11 + 1);
     // A shop of lasers only: shell, fleet page, one family and query.
     expect(s['fleet page, live tiles: xtool machines only']).toBe(174 + 5 + 2 + 10 + 11);
     // The fleet page's first screen: the shell and the fleet page, no family.

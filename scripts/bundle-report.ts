@@ -112,6 +112,9 @@ export function screensOf(chunkList: ChunkInfo[], css: AssetInfo[]): Screen[] {
   out.push(screen('fleet page: first screen', fleetShell));
   const fleet = new Set(fleetShell);
   const machineRoute = closure(chunks, need(MACHINE_PAGE).file, new Set(shell));
+  // A kiosk tablet (`/m/<id>?kiosk`) paints its machine from the console server's reading too
+  // (KioskPage, first-screen.ts): the machine page's route and the kiosk view, no family yet.
+  out.push(screen('kiosk page: first screen', closure(chunks, need(KIOSK_PAGE).file, new Set(machineRoute))));
   const machinePage = closure(chunks, need(TOP_BAR).file, new Set(machineRoute));
   for (const kind of MACHINE_KINDS) {
     const mod = need(familyModule(kind));
@@ -124,11 +127,11 @@ export function screensOf(chunkList: ChunkInfo[], css: AssetInfo[]): Screen[] {
     out.push(screen(`family: ${kind}`, family));
     const page = closure(chunks, mod.file, new Set(machinePage));
     out.push(screen(`machine page: ${kind}`, closure(chunks, need(FIRST_TAB_VIEWS[kind]).file, page)));
-    // A kiosk tablet (`/m/<id>?kiosk`): the machine page's route, the kiosk view (no tabs), the
+    // Then, live, with its controls: the machine page's route, the kiosk view (no tabs), the
     // family and its kiosk view, if it has one.
     const kiosk = closure(chunks, need(KIOSK_PAGE).file, closure(chunks, mod.file, new Set(machineRoute)));
     const extra = KIOSK_EXTRA_VIEWS[kind];
-    out.push(screen(`kiosk page: ${kind}`, extra ? closure(chunks, need(extra).file, kiosk) : kiosk));
+    out.push(screen(`kiosk page, live: ${kind}`, extra ? closure(chunks, need(extra).file, kiosk) : kiosk));
   }
   out.push(screen('fleet page, live tiles: all five families', fleet));
   return out;

@@ -3,11 +3,20 @@ import { useStore } from 'zustand';
 import { familyPages } from '../controllers';
 import { authStore } from '../fleet/auth';
 import { EmptyState, Loading } from '../ui';
-import { lazyView } from '../fleet/lazy';
+import { lazyView, preloadViews } from '../fleet/lazy';
 import { alarmSummary } from './alarms/summary';
 import { ErrorBoundary } from './ErrorBoundary';
 import { afterFirstScreen } from './first-screen';
-import { AlarmsPage, AuditPage, FleetPage, HistoryPage, LoginPage, MachinePage, WallPage } from './pages';
+import {
+  AlarmsPage,
+  AuditPage,
+  FleetPage,
+  HistoryPage,
+  KioskPage,
+  LoginPage,
+  MachinePage,
+  WallPage,
+} from './pages';
 import { Link, matchRoute, useLocation } from './router';
 import { Shortcuts } from './shortcuts/lazy';
 
@@ -21,6 +30,8 @@ export function App() {
   const route = matchRoute(pathname, search);
   // Kiosk tablet (`/m/<id>?kiosk`): one machine, nothing to navigate away with (src/app/kiosk/).
   const kiosk = route.name === 'machine' && route.kiosk === true;
+  // Both of a kiosk's chunks at once, not the kiosk view after the machine page's.
+  if (kiosk) preloadViews([MachinePage, KioskPage]);
   const mode = useStore(authStore, (s) => s.mode);
   const user = useStore(authStore, (s) => s.user);
   const openOnNetwork = useStore(authStore, (s) => s.openOnNetwork === true);

@@ -10,12 +10,11 @@ import { Badge, EmptyState, Loading, Notice } from '../ui';
 import { MachineAge } from './Age';
 import { ErrorBoundary } from './ErrorBoundary';
 import { MachineProblems } from './MachineProblems';
+import { KioskPage } from './pages';
 import { Link } from './router';
 import { ACTIVITY_TONE, ACTIVITY_WORDS, LINK_TONE } from './status';
 
 const SimulatorPanel = lazyView(() => import('./SimulatorPanel'), 'SimulatorPanel');
-// A chunk of its own: a machine page that is not a kiosk does not carry it.
-const KioskPage = lazyView(() => import('./kiosk/KioskPage'), 'KioskPage');
 
 interface PageTab {
   id: string;

@@ -113,6 +113,68 @@ describe('boot', () => {
     );
   });
 
+  it('a kiosk tablet paints its machine from the server reading first; its family loads right after', async () => {
+    history.replaceState(null, '', '/m/ks-laser?kiosk');
+    vi.resetModules();
+    const { controllerLoaders: loaders } = await import('../controllers');
+    const order: string[] = [];
+    loaders.xtool = () => (order.push('xtool'), Promise.resolve(fakeModule('xtool')));
+    loaders.duet = () => (order.push('duet'), Promise.resolve(fakeModule('duet')));
+    const watch = { state: 'running', job: null, progress: null, alarm: null, ageMs: 800 };
+    vi.stubGlobal(
+      'fetch',
+      vi.fn((url: string) =>
+        Promise.resolve(
+          url.startsWith('/api/machines')
+            ? answer({
+                machines: [
+                  { id: 'ks-laser', name: 'Laser', kind: 'xtool', simulated: true, watch },
+                  // A machine without a reading in view would load its code at once (not here).
+                  { id: 'ks-printer', name: 'Printer', kind: 'duet', simulated: true },
+                ],
+              })
+            : answer({ mode: 'open', user: null }),
+        ),
+      ),
+    );
+    const { boot } = await import('./boot');
+    const { firstScreenShown } = await import('./first-screen');
+    await boot();
+    // Nothing of the family before the kiosk has painted the server's reading.
+    await new Promise((r) => setTimeout(r, 1000));
+    expect(order).toEqual([]);
+    firstScreenShown();
+    // At once after it (no idle wait), and its machine's family only.
+    await new Promise((r) => setTimeout(r, 0));
+    expect(order).toEqual(['xtool']);
+    await new Promise((r) => setTimeout(r, 3000));
+    expect(order).toEqual(['xtool']);
+  });
+
+  it('a kiosk tablet whose first screen never shows still loads its machine’s code', async () => {
+    history.replaceState(null, '', '/m/ks-mill?kiosk');
+    vi.resetModules();
+    const { controllerLoaders: loaders } = await import('../controllers');
+    const order: string[] = [];
+    loaders.g2core = () => (order.push('g2core'), Promise.resolve(fakeModule('g2core')));
+    const watch = { state: 'idle', job: null, progress: null, alarm: null, ageMs: 800 };
+    vi.stubGlobal(
+      'fetch',
+      vi.fn((url: string) =>
+        Promise.resolve(
+          url.startsWith('/api/machines')
+            ? answer({ machines: [{ id: 'ks-mill', name: 'Mill', kind: 'g2core', simulated: true, watch }] })
+            : answer({ mode: 'open', user: null }),
+        ),
+      ),
+    );
+    const { boot } = await import('./boot');
+    await boot();
+    await new Promise((r) => setTimeout(r, 1000));
+    expect(order).toEqual([]);
+    await vi.waitFor(() => expect(order).toEqual(['g2core']), { timeout: 3000 });
+  });
+
   it('the fleet page paints from the server readings first; the families load after it', async () => {
     history.replaceState(null, '', '/');
     // A fresh page: the earlier tests' pages had their first screens already.
@@ -157,6 +219,14 @@ describe('boot', () => {
     expect(machines.find((m) => m.id === 'fs-table')?.watch).toMatchObject({ state: 'running', job: 'A.nc' });
     expect(machines.find((m) => m.id === 'fs-printer')).toMatchObject({ name: 'Printer' });
     expect(machines.find((m) => m.id === 'fs-printer')?.watch).toBeUndefined();
+    // And said in that machine's log (the other's has nothing to say).
+    const { getRuntime } = await import('../fleet/fleet');
+    const warned = (id: string) =>
+      getRuntime(id)
+        ?.log.store.getState()
+        .entries.filter((e) => e.level === 'warning' && /reading .* was malformed/.test(e.text)).length;
+    expect(warned('fs-printer')).toBe(1);
+    expect(warned('fs-table')).toBe(0);
     // No family's code before the first screen is up (longer than an idle wait, shorter than the
     // few seconds after which the machines start anyway).
     await new Promise((r) => setTimeout(r, 2000));

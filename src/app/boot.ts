@@ -16,9 +16,9 @@ import { MACHINE_KINDS, type MachineInfo, type MachineKind } from '../fleet/type
 import { CONSOLE_HEADERS } from '../fleet/origin';
 import { startReadSocket } from '../fleet/read-socket';
 import { fetchSession, trackActivity } from './auth/api';
-import { afterFirstScreen, firstScreenShown, readWatch } from './first-screen';
+import { afterFirstScreen, firstScreenShown, onFirstScreen, readWatch } from './first-screen';
 import { untilReachable } from './pwa/reach';
-import { onLocationChange } from './router';
+import { matchRoute, onLocationChange } from './router';
 
 const MachinesAnswer = z.object({
   machines: z.array(
@@ -54,6 +54,7 @@ export async function boot(): Promise<void> {
   // The machines' polls go over one socket to the console server (read-socket.ts): HTTP until it is open.
   const reads = startReadSocket();
   let machines: MachineInfo[];
+  const unreadable = new Set<string>();
   try {
     const r = await untilReachable(() =>
       fetch('/api/machines', { credentials: 'same-origin', headers: CONSOLE_HEADERS }),
@@ -66,9 +67,11 @@ export async function boot(): Promise<void> {
     const parsed = MachinesAnswer.safeParse(await r.json());
     if (!parsed.success)
       throw new Error(`the machine list is malformed: ${parsed.error.issues[0]?.message ?? ''}`);
-    // The server's reading of each machine is read on its own: a bad one is left out, not the fleet.
+    // The server's reading of each machine is read on its own: a bad one is left out (and said in
+    // that machine's log below), not the fleet.
     machines = parsed.data.machines.map(({ watch, ...m }) => {
       const w = readWatch(watch);
+      if (watch !== undefined && !w) unreadable.add(m.id);
       return w ? { ...m, watch: w } : m;
     });
   } catch (e) {
@@ -85,6 +88,11 @@ export async function boot(): Promise<void> {
     const rt = pendingRuntime(m, { detail: detailShownOf(m.id) });
     registerRuntime(rt);
     created.push(rt);
+    if (unreadable.has(m.id))
+      rt.log.warn(
+        'console',
+        'the console server’s last reading of this machine was malformed: it waits for its own',
+      );
   }
   fleetStore.setState({ status: 'ready', machines, error: null });
   // Each family's code loads on its own; its machines start when it is there. On a machine's
@@ -104,7 +112,8 @@ export async function boot(): Promise<void> {
   };
   const inView = created.find((rt) => rt.info.id === machineInView());
   // The first screen (first-screen.ts): on a machine's page, once that machine has answered (or
-  // could not: any state but "connecting"), or a few seconds at the latest; on the fleet page,
+  // could not: any state but "connecting"), or a few seconds at the latest (a kiosk tablet's as
+  // soon as it shows the server's reading of its machine: KioskPage); on the fleet page,
   // once its tiles show (FleetPage); elsewhere at once. What it does not need waits for it: the
   // other families' code, the alarm layer, the service worker.
   if (inView) {
@@ -117,9 +126,20 @@ export async function boot(): Promise<void> {
       clearTimeout(shownTimer);
       firstScreenShown();
     }
-  } else if (location.pathname !== '/') firstScreenShown();
+  } else if (!fleetInView()) firstScreenShown();
   if (inView && kioskInView()) {
-    start([inView]);
+    // A kiosk tablet with the server's reading of its machine paints from it first (KioskPage);
+    // the machine's family code loads at once after that (not at idle: its controls come with it),
+    // or after a few seconds at the latest. Without a reading, the code loads at once.
+    if (inView.info.watch) {
+      const go = (): void => {
+        clearTimeout(fallback);
+        stopWaiting();
+        start([inView]);
+      };
+      const fallback = setTimeout(go, OTHERS_AFTER_MS);
+      const stopWaiting = onFirstScreen(go);
+    } else start([inView]);
     const stop = onLocationChange(() => {
       if (kioskInView()) return;
       stop();
@@ -129,7 +149,7 @@ export async function boot(): Promise<void> {
     // The machine in view's family first, the others when the browser is idle after it answered.
     start(created.filter((rt) => rt.info.kind === inView.info.kind));
     afterFirstScreen(() => start(created), 2 * OTHERS_AFTER_MS);
-  } else if (location.pathname === '/') {
+  } else if (fleetInView()) {
     // The fleet page paints first, from the server's readings in the machines list; the families'
     // code loads when the browser is idle after that (or after a few seconds at the latest: a
     // page that never shows its tiles still starts its machines).
@@ -141,20 +161,21 @@ export async function boot(): Promise<void> {
   });
 }
 
-/** The machine whose page is open (`/m/<id>…`), if one is. */
+/** The machine whose page is open (`/m/<id>…`), if one is (the router's reading of the address). */
 function machineInView(): string | null {
-  const m = /^\/m\/([^/]+)/.exec(location.pathname);
-  if (!m?.[1]) return null;
-  try {
-    return decodeURIComponent(m[1]);
-  } catch {
-    return null;
-  }
+  const r = matchRoute(location.pathname, location.search);
+  return r.name === 'machine' ? r.id : null;
 }
 
 /** A kiosk tablet's page (`/m/<id>?kiosk`) is open. */
 function kioskInView(): boolean {
-  return machineInView() !== null && new URLSearchParams(location.search).has('kiosk');
+  const r = matchRoute(location.pathname, location.search);
+  return r.name === 'machine' && r.kiosk === true;
+}
+
+/** The fleet page (`/`) is open. */
+function fleetInView(): boolean {
+  return matchRoute(location.pathname, location.search).name === 'fleet';
 }
 
 /** On a machine's page, the other families start at the latest this long after boot. */

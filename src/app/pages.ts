@@ -7,6 +7,12 @@ import { lazyView } from '../fleet/lazy';
  */
 export const FleetPage = lazyView(() => import('./FleetPage'), 'FleetPage');
 export const MachinePage = lazyView(() => import('./MachinePage'), 'MachinePage');
+/**
+ * A kiosk tablet's view of one machine (`/m/<id>?kiosk`), shown by the machine page: a chunk of its
+ * own (a machine page that is not a kiosk does not carry it), loaded beside the machine page's on
+ * a kiosk (App), not after it.
+ */
+export const KioskPage = lazyView(() => import('./kiosk/KioskPage'), 'KioskPage');
 export const LoginPage = lazyView(() => import('./auth/LoginPage'), 'LoginPage');
 export const AuditPage = lazyView(() => import('./audit/AuditPage'), 'AuditPage');
 export const AlarmsPage = lazyView(() => import('./alarms/AlarmsPage'), 'AlarmsPage');

@@ -23,11 +23,12 @@ describe('bundle budget', () => {
     const names = report?.screens.map((s) => s.name) ?? [];
     expect(names).toContain('shell');
     expect(names).toContain('fleet page: first screen');
+    expect(names).toContain('kiosk page: first screen');
     expect(names).toContain('fleet page, live tiles: all five families');
     for (const kind of MACHINE_KINDS) {
       expect(names).toContain(`family: ${kind}`);
       expect(names).toContain(`machine page: ${kind}`);
-      expect(names).toContain(`kiosk page: ${kind}`);
+      expect(names).toContain(`kiosk page, live: ${kind}`);
     }
   });
 

@@ -3,7 +3,7 @@ import type { Screen } from '../../scripts/bundle-report';
 /**
  * Ceilings (KiB of gzip JS+CSS) per screen of the built console, checked after every build. They
  * sit a few KiB above what the screens weigh today, so growth fails the tests; lower them as the
- * screens shrink. Issue 16's targets (fleet page ≤ 150, machine page ≤ 120) are reported beside
+ * screens shrink. Issue 16's targets (fleet page ≤ 150, kiosk page ≤ 120, first screens) are reported beside
  * the measurements by `npm run bench -- bundle` (see the README, Performance).
  */
 export const SIZE_BUDGETS_KIB: Array<{ screen: RegExp; kib: number }> = [
@@ -14,8 +14,11 @@ export const SIZE_BUDGETS_KIB: Array<{ screen: RegExp; kib: number }> = [
   { screen: /^family: /, kib: 28 },
   // 163 → 141, the same two changes, and the access rules and gateway hints left to the server.
   { screen: /^machine page: /, kib: 141 },
-  // A kiosk tablet's page (issue 16's ≤ 120 KiB target; not met yet, see the README).
-  { screen: /^kiosk page: /, kib: 139 },
+  // A kiosk tablet's first screen (issue 16's ≤ 120 KiB target): its machine from the console
+  // server's reading, before the family's code (src/app/kiosk/KioskPage.tsx).
+  { screen: /^kiosk page: first screen$/, kib: 116 },
+  // Then live, with the family's code and its controls.
+  { screen: /^kiosk page, live: /, kib: 139 },
   // The fleet page paints from the console server's readings before any family's code
   // (src/app/first-screen.ts): the shell and the fleet page.
   { screen: /^fleet page: first screen$/, kib: 117 },

@@ -221,6 +221,37 @@ test.describe('kiosk tablets', () => {
     });
   }
 
+  test.describe('first screen', () => {
+    // The service worker would fetch the held-back chunk itself (page.route does not see it).
+    test.use({ serviceWorkers: 'block' });
+
+    test('the kiosk shows its machine from the console server reading before its code, with no control yet', async ({
+      page,
+      request,
+    }) => {
+      await simulator(request, 'demo-xtool', 'world', 'demo');
+      // The machine's family code held back: the page can only paint what the machines list carries.
+      const family = /\/assets\/module-[^/]+\.js$/;
+      await page.route(family, (route) => route.abort());
+      // The server's watch reads the machine every few seconds: until it has read the job running.
+      await expect(async () => {
+        await page.goto('/m/demo-xtool?kiosk');
+        await expect(page.getByTestId('kiosk-activity')).toHaveText('Running', { timeout: 1000 });
+      }).toPass({ timeout: 30_000 });
+      await expect(page.getByTestId('kiosk-label')).toContainText('Read by the console server');
+      // Said for what it is: not a live link, no control that could not be sent, no "No job".
+      await expect(page.getByTestId('kiosk-link')).toHaveText('Connecting');
+      await expect(page.locator('[data-kiosk]')).toHaveCount(0);
+      await expect(page.getByText('No job', { exact: true })).toHaveCount(0);
+      // With the code let through, the same page goes live with its controls.
+      await page.unroute(family);
+      await page.goto('/m/demo-xtool?kiosk');
+      await expect(page.getByTestId('kiosk-link')).toHaveText('Online');
+      await expect(page.locator('[data-kiosk="stop"] button')).toBeVisible();
+      await expect(page.getByTestId('kiosk-label')).not.toContainText('console server');
+    });
+  });
+
   test('without the kiosk flag the machine page keeps its navigation', async ({ page }) => {
     await page.goto('/m/demo-xtool');
     await expect(page.getByTestId('machine-link')).toHaveText('Online');

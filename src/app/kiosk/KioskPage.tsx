@@ -1,4 +1,4 @@
-import { Suspense, useEffect, type ComponentType } from 'react';
+import { Suspense, useEffect, useMemo, type ComponentType } from 'react';
 import { FAMILY_LABELS, useController } from '../../controllers';
 import type { AnyCommand } from '../../fleet/commands';
 import { linkWords, type MachineSession, type TabProps } from '../../fleet/contract';
@@ -10,7 +10,8 @@ import { TouchLockPolicy } from '../../ui/Lockable';
 import { MachineAge } from '../Age';
 import { ErrorBoundary } from '../ErrorBoundary';
 import { MachineProblems } from '../MachineProblems';
-import { ACTIVITY_TONE, ACTIVITY_WORDS, cardFields, LINK_TONE } from '../status';
+import { cardOf, firstScreenShown } from '../first-screen';
+import { ACTIVITY_TONE, ACTIVITY_WORDS, LINK_TONE } from '../status';
 import { KIOSK_FAMILIES, type KioskFamily } from './per-family';
 import { useScreenWakeLock, type WakeStatus } from './wake-lock';
 
@@ -26,13 +27,20 @@ const JOB_UNDER_WAY: ReadonlySet<Activity> = new Set<Activity>(['running', 'paus
 export function KioskPage({ rt }: { rt: MachineRuntime }) {
   const info = rt.info;
   const mod = useController(info.kind);
+  // The session's card, or the console server's reading of the machine until the session's first
+  // answer (first-screen.ts): the tablet shows the machine before its family's code is loaded.
+  const card = useMemo(() => cardOf(info), [info]);
   const s = useSnapshot(rt, (x) => ({
-    ...cardFields(x),
+    ...card(x),
     identity: x.identity,
     retryAt: x.retryAt,
   }));
   // The machine's details at full pace while the kiosk shows it (as the machine page does).
   useEffect(() => showDetail(info.id), [info.id]);
+  // With the server's reading this is the first screen: the family's code may load now (boot.ts).
+  useEffect(() => {
+    if (info.watch) firstScreenShown();
+  }, [info.watch]);
   const wake = useScreenWakeLock(JOB_UNDER_WAY.has(s.activity));
   const session = rt.session;
   const family = KIOSK_FAMILIES[info.kind];
@@ -118,7 +126,8 @@ export function KioskPage({ rt }: { rt: MachineRuntime }) {
             </>
           ) : (
             <div className="kiosk-no-job ui-muted" data-testid="kiosk-no-job">
-              No job
+              {/* Until the machine answers, nobody knows (the server's reading may name no job). */}
+              {s.link === 'connecting' ? 'Job: waiting for the machine…' : 'No job'}
             </div>
           )}
         </section>
