@@ -6,18 +6,16 @@ import {
   hashFast,
   login,
   openWs,
-  startGateway,
-  startStub,
-  tempDir,
-  testFamily,
   user,
-  writeJson,
   type Running,
   type Stub,
   consoleFetch,
+  stubFor,
+  gatewayFor,
+  stubEntry,
+  writeJson,
 } from './test-util';
 import type { UserRecord } from './users';
-import path from 'node:path';
 
 const cleanups: Array<() => Promise<void> | void> = [];
 afterEach(async () => {
@@ -48,37 +46,22 @@ interface Setup {
 }
 
 async function setup(opts: { users?: UserRecord[] | null; machines?: MachineEntry[] } = {}): Promise<Setup> {
-  const t = tempDir();
-  cleanups.push(t.cleanup);
-  const stub = await startStub();
-  cleanups.push(stub.close);
-  const usersFile = path.join(t.dir, 'users.json');
-  const users = opts.users === undefined ? defaultUsers() : opts.users;
-  if (users) writeJson(usersFile, { users });
+  const stub = await stubFor(cleanups);
   const clock = { t: Date.parse('2026-01-05T08:00:00Z') };
-  const machine = (id: string, simulated = false): MachineEntry => ({
-    id,
-    name: id,
-    kind: 'prunt',
-    simulated,
-    url: simulated ? null : new URL(stub.url),
-    wsUrl: null,
-    secrets: {},
-  });
-  const gw = await startGateway({
-    machines: {
-      file: null,
-      machines: opts.machines ?? [machine('p1'), machine('p2'), machine('demo', true)],
+  const gw = await gatewayFor(
+    cleanups,
+    opts.machines ?? [
+      stubEntry('p1', stub.url),
+      stubEntry('p2', stub.url),
+      stubEntry('demo', null, { simulated: true }),
+    ],
+    {
+      users: opts.users === undefined ? defaultUsers() : opts.users,
+      now: () => clock.t,
+      rateLimit: { windowMs: 60_000, perUser: 3, perAddress: 6 },
     },
-    families: { prunt: testFamily('prunt') },
-    dataDir: t.dir,
-    usersFile,
-    env: {},
-    now: () => clock.t,
-    rateLimit: { windowMs: 60_000, perUser: 3, perAddress: 6 },
-  });
-  cleanups.push(gw.close);
-  return { gw, stub, clock, usersFile };
+  );
+  return { gw, stub, clock, usersFile: gw.usersFile };
 }
 
 /** Requests of the test family, one per role level, HTTP and WebSocket. */

@@ -11,7 +11,6 @@ import {
   login,
   openWs,
   startGateway,
-  startStub,
   tempDir,
   testFamily,
   user,
@@ -19,6 +18,9 @@ import {
   type Running,
   type Stub,
   selfSignedCert,
+  stubFor,
+  stubEntry,
+  gatewayFor,
 } from './test-util';
 import type { UserRecord } from './users';
 import { bridgeSockets } from './ws-bridge';
@@ -34,24 +36,8 @@ afterEach(async () => {
   for (const c of cleanups.splice(0).reverse()) await c();
 });
 
-function entry(id: string, url: string, extra: Partial<MachineEntry> = {}): MachineEntry {
-  return {
-    id,
-    name: id,
-    kind: 'prunt',
-    simulated: false,
-    url: new URL(url),
-    wsUrl: null,
-    secrets: {},
-    ...extra,
-  };
-}
-
-async function stub(): Promise<Stub> {
-  const s = await startStub();
-  cleanups.push(s.close);
-  return s;
-}
+const entry = stubEntry;
+const stub = (): Promise<Stub> => stubFor(cleanups);
 
 /** The test family, declaring Prunt-like help pictures as images the console shows. */
 function family() {
@@ -59,23 +45,11 @@ function family() {
   return { ...f, gateway: { ...f.gateway, imageAnswer: (p: string) => p.startsWith('/extras/images/') } };
 }
 
-async function gateway(
+function gateway(
   machines: MachineEntry[],
   users: UserRecord[] | null = null,
 ): Promise<Running & { usersFile: string }> {
-  const t = tempDir();
-  cleanups.push(t.cleanup);
-  const usersFile = path.join(t.dir, 'users.json');
-  if (users) writeJson(usersFile, { users });
-  const gw = await startGateway({
-    machines: { file: null, machines },
-    families: { prunt: family() },
-    dataDir: t.dir,
-    usersFile,
-    env: {},
-  });
-  cleanups.push(gw.close);
-  return { ...gw, usersFile };
+  return gatewayFor(cleanups, machines, { users, families: { prunt: family() } });
 }
 
 describe('2: a controller answer never renders as a page on the console origin', () => {

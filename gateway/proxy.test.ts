@@ -4,7 +4,9 @@ import { afterEach, describe, expect, it } from 'vitest';
 import type { AuditEntry } from './audit';
 import {
   openWs,
-  startGateway,
+  gatewayFor,
+  stubEntry,
+  stubFor,
   startStub,
   tempDir,
   testFamily,
@@ -20,42 +22,20 @@ afterEach(async () => {
   for (const c of cleanups.splice(0).reverse()) await c();
 });
 
-function entry(id: string, url: string | null, extra: Partial<MachineEntry> = {}): MachineEntry {
-  return {
-    id,
-    name: id,
-    kind: 'prunt',
-    simulated: false,
-    url: url ? new URL(url) : null,
-    wsUrl: null,
-    secrets: {},
-    ...extra,
-  };
-}
+const entry = stubEntry;
 
-async function setup(
+function setup(
   machines: MachineEntry[],
   extra: { timeoutMs?: number; defaultWsPort?: number; allowedHosts?: string[] } = {},
 ): Promise<Running> {
-  const t = tempDir();
-  cleanups.push(t.cleanup);
-  const gw = await startGateway({
-    machines: { file: null, machines },
+  return gatewayFor(cleanups, machines, {
     families: { prunt: testFamily('prunt', extra.defaultWsPort) },
-    dataDir: t.dir,
-    env: {},
     timeoutMs: extra.timeoutMs,
     allowedHosts: extra.allowedHosts,
   });
-  cleanups.push(gw.close);
-  return gw;
 }
 
-async function stub(): Promise<Stub> {
-  const s = await startStub();
-  cleanups.push(s.close);
-  return s;
-}
+const stub = (): Promise<Stub> => stubFor(cleanups);
 
 function auditOf(gw: Running): AuditEntry[] {
   return gw.gw.audit.all();

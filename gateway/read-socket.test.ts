@@ -1,21 +1,17 @@
-import path from 'node:path';
 import { afterEach, describe, expect, it } from 'vitest';
 import { WebSocket } from 'ws';
 import type { AuditEntry } from './audit';
-import type { MachineEntry } from './machines';
 import { READ_SOCKET_LIMITS } from './read-socket';
 import {
   consoleFetch,
   login,
   openWs,
-  startGateway,
-  startStub,
-  tempDir,
-  testFamily,
   user,
-  writeJson,
   type Running,
   type Stub,
+  stubFor,
+  gatewayFor,
+  stubEntry,
 } from './test-util';
 
 /**
@@ -37,34 +33,15 @@ interface Setup {
 }
 
 async function setup(): Promise<Setup> {
-  const t = tempDir();
-  cleanups.push(t.cleanup);
-  const stub = await startStub();
-  cleanups.push(stub.close);
-  const usersFile = writeJson(path.join(t.dir, 'users.json'), {
+  const stub = await stubFor(cleanups);
+  const machine = (id: string) => stubEntry(id, stub.url, { secrets: { apiKey: SECRET } });
+  const gw = await gatewayFor(cleanups, [machine('p1'), machine('p2')], {
     users: [
       user('vera', 'viewer', 'viewer-pass-1'),
       user('otto', 'operator', 'operator-pass-1'),
       user('lena', 'operator', 'limited-pass-1', { machines: ['p2'] }),
     ],
   });
-  const machine = (id: string): MachineEntry => ({
-    id,
-    name: id,
-    kind: 'prunt',
-    simulated: false,
-    url: new URL(stub.url),
-    wsUrl: null,
-    secrets: { apiKey: SECRET },
-  });
-  const gw = await startGateway({
-    machines: { file: null, machines: [machine('p1'), machine('p2')] },
-    families: { prunt: testFamily('prunt') },
-    dataDir: t.dir,
-    usersFile,
-    env: {},
-  });
-  cleanups.push(gw.close);
   const audit = (): AuditEntry[] => gw.gw.audit.all();
   return { gw, stub, audit };
 }

@@ -12,6 +12,7 @@ import type { FamilyDescriptor } from '../src/fleet/contract';
 import { jsonResponse, splitPath, type Simulator } from '../src/fleet/sim';
 import type { Role } from '../src/fleet/types';
 import { createGateway, type Gateway, type GatewayOptions } from './gateway';
+import type { MachineEntry } from './machines';
 import type { UserRecord } from './users';
 
 /** A self-signed certificate made with openssl in `dir` (files `<name>.key`/`<name>.pem`, and their text). */
@@ -125,6 +126,58 @@ export interface Running {
   host: string;
   gw: Gateway;
   close(): Promise<void>;
+}
+
+/** A test file's cleanups: run after each test, newest first. */
+export type Cleanups = Array<() => Promise<void> | void>;
+
+/** A stub controller, closed by `cleanups`. */
+export async function stubFor(cleanups: Cleanups): Promise<Stub> {
+  const s = await startStub();
+  cleanups.push(s.close);
+  return s;
+}
+
+/** A machine of the test family (`prunt`) on the controller at `url` (a stub's; null: none). */
+export function stubEntry(id: string, url: string | null, extra: Partial<MachineEntry> = {}): MachineEntry {
+  return {
+    id,
+    name: id,
+    kind: 'prunt',
+    simulated: false,
+    url: url === null ? null : new URL(url),
+    wsUrl: null,
+    secrets: {},
+    ...extra,
+  };
+}
+
+/**
+ * The gateway with these machines, on the test family unless `families` says otherwise, its data
+ * in a temporary folder; `users`: its users file (absent: open mode). Closed by `cleanups`.
+ */
+export async function gatewayFor(
+  cleanups: Cleanups,
+  machines: MachineEntry[],
+  opts: { users?: UserRecord[] | null } & Partial<
+    Omit<GatewayOptions, 'machines' | 'dataDir' | 'usersFile'>
+  > = {},
+): Promise<Running & { usersFile: string }> {
+  const { users, ...rest } = opts;
+  const t = tempDir();
+  cleanups.push(t.cleanup);
+  const usersFile = path.join(t.dir, 'users.json');
+  if (users) writeJson(usersFile, { users });
+  const gw = await startGateway({
+    families: { prunt: testFamily('prunt') },
+    env: {},
+    ...rest,
+    machines: { file: null, machines },
+    dataDir: t.dir,
+    usersFile,
+  });
+  cleanups.push(gw.close);
+  return { ...gw, usersFile };
 }
 
 /** The real middleware and upgrade listener on a plain Node server at 127.0.0.1:0. */

@@ -32,18 +32,38 @@ const sessionsStarted: string[] = [];
 const answer = (body: unknown): Response =>
   new Response(JSON.stringify(body), { status: 200, headers: { 'Content-Type': 'application/json' } });
 
+/** A machine in the machines list (simulated unless it says otherwise; `watch`: the server's reading). */
+type Listed = { id: string; name: string; kind: MachineKind } & Record<string, unknown>;
+
 /** The gateway's answers at boot: an open console and these machines. */
-function stubFleet(machines: Array<{ id: string; name: string; kind: MachineKind }>): void {
+function stubFleet(machines: readonly Listed[]): void {
   vi.stubGlobal(
     'fetch',
     vi.fn((url: string) =>
       Promise.resolve(
         url.startsWith('/api/machines')
-          ? answer({ machines: machines.map((m) => ({ ...m, simulated: true })) })
+          ? answer({ machines: machines.map((m) => ({ simulated: true, ...m })) })
           : answer({ mode: 'open', user: null }),
       ),
     ),
   );
+}
+
+/**
+ * A fresh page at `path` listing `machines` (a new module graph: no earlier test's first screen),
+ * with the order in which the families' code is asked for.
+ */
+async function freshPage(path: string, machines: readonly Listed[]) {
+  history.replaceState(null, '', path);
+  vi.resetModules();
+  const { controllerLoaders: loaders } = await import('../controllers');
+  const order: string[] = [];
+  for (const kind of new Set(machines.map((m) => m.kind)))
+    loaders[kind] = () => (order.push(kind), Promise.resolve(fakeModule(kind)));
+  stubFleet(machines);
+  const { boot } = await import('./boot');
+  const { firstScreenShown } = await import('./first-screen');
+  return { order, boot, firstScreenShown };
 }
 
 afterEach(() => {
@@ -114,31 +134,12 @@ describe('boot', () => {
   });
 
   it('a kiosk tablet paints its machine from the server reading first; its family loads right after', async () => {
-    history.replaceState(null, '', '/m/ks-laser?kiosk');
-    vi.resetModules();
-    const { controllerLoaders: loaders } = await import('../controllers');
-    const order: string[] = [];
-    loaders.xtool = () => (order.push('xtool'), Promise.resolve(fakeModule('xtool')));
-    loaders.duet = () => (order.push('duet'), Promise.resolve(fakeModule('duet')));
     const watch = { state: 'running', job: null, progress: null, alarm: null, ageMs: 800 };
-    vi.stubGlobal(
-      'fetch',
-      vi.fn((url: string) =>
-        Promise.resolve(
-          url.startsWith('/api/machines')
-            ? answer({
-                machines: [
-                  { id: 'ks-laser', name: 'Laser', kind: 'xtool', simulated: true, watch },
-                  // A machine without a reading in view would load its code at once (not here).
-                  { id: 'ks-printer', name: 'Printer', kind: 'duet', simulated: true },
-                ],
-              })
-            : answer({ mode: 'open', user: null }),
-        ),
-      ),
-    );
-    const { boot } = await import('./boot');
-    const { firstScreenShown } = await import('./first-screen');
+    const { order, boot, firstScreenShown } = await freshPage('/m/ks-laser?kiosk', [
+      { id: 'ks-laser', name: 'Laser', kind: 'xtool', watch },
+      // Another machine's family is not loaded on the kiosk at all.
+      { id: 'ks-printer', name: 'Printer', kind: 'duet' },
+    ]);
     await boot();
     // Nothing of the family before the kiosk has painted the server's reading.
     await new Promise((r) => setTimeout(r, 1000));
@@ -152,23 +153,10 @@ describe('boot', () => {
   });
 
   it('a kiosk tablet whose first screen never shows still loads its machine’s code', async () => {
-    history.replaceState(null, '', '/m/ks-mill?kiosk');
-    vi.resetModules();
-    const { controllerLoaders: loaders } = await import('../controllers');
-    const order: string[] = [];
-    loaders.g2core = () => (order.push('g2core'), Promise.resolve(fakeModule('g2core')));
     const watch = { state: 'idle', job: null, progress: null, alarm: null, ageMs: 800 };
-    vi.stubGlobal(
-      'fetch',
-      vi.fn((url: string) =>
-        Promise.resolve(
-          url.startsWith('/api/machines')
-            ? answer({ machines: [{ id: 'ks-mill', name: 'Mill', kind: 'g2core', simulated: true, watch }] })
-            : answer({ mode: 'open', user: null }),
-        ),
-      ),
-    );
-    const { boot } = await import('./boot');
+    const { order, boot } = await freshPage('/m/ks-mill?kiosk', [
+      { id: 'ks-mill', name: 'Mill', kind: 'g2core', watch },
+    ]);
     await boot();
     await new Promise((r) => setTimeout(r, 1000));
     expect(order).toEqual([]);
@@ -176,51 +164,23 @@ describe('boot', () => {
   });
 
   it('the fleet page paints from the server readings first; the families load after it', async () => {
-    history.replaceState(null, '', '/');
-    // A fresh page: the earlier tests' pages had their first screens already.
-    vi.resetModules();
-    const { controllerLoaders: loaders } = await import('../controllers');
-    const order: string[] = [];
-    loaders.touchcut = () => (order.push('touchcut'), Promise.resolve(fakeModule('touchcut')));
-    loaders.prunt = () => (order.push('prunt'), Promise.resolve(fakeModule('prunt')));
-    vi.stubGlobal(
-      'fetch',
-      vi.fn((url: string) =>
-        Promise.resolve(
-          url.startsWith('/api/machines')
-            ? answer({
-                machines: [
-                  {
-                    id: 'fs-table',
-                    name: 'Table',
-                    kind: 'touchcut',
-                    simulated: true,
-                    watch: { state: 'running', job: 'A.nc', progress: 0.5, alarm: null, ageMs: 1200 },
-                  },
-                  // A reading the page cannot use is left out alone: the machine still comes.
-                  {
-                    id: 'fs-printer',
-                    name: 'Printer',
-                    kind: 'prunt',
-                    simulated: true,
-                    watch: { state: 'melting' },
-                  },
-                ],
-              })
-            : answer({ mode: 'open', user: null }),
-        ),
-      ),
-    );
-    const { boot } = await import('./boot');
-    const { fleetStore } = await import('../fleet/fleet');
-    const { firstScreenShown } = await import('./first-screen');
+    const { order, boot, firstScreenShown } = await freshPage('/', [
+      {
+        id: 'fs-table',
+        name: 'Table',
+        kind: 'touchcut',
+        watch: { state: 'running', job: 'A.nc', progress: 0.5, alarm: null, ageMs: 1200 },
+      },
+      // A reading the page cannot use is left out alone: the machine still comes.
+      { id: 'fs-printer', name: 'Printer', kind: 'prunt', watch: { state: 'melting' } },
+    ]);
+    const { fleetStore, getRuntime } = await import('../fleet/fleet');
     await boot();
     const machines = fleetStore.getState().machines;
     expect(machines.find((m) => m.id === 'fs-table')?.watch).toMatchObject({ state: 'running', job: 'A.nc' });
     expect(machines.find((m) => m.id === 'fs-printer')).toMatchObject({ name: 'Printer' });
     expect(machines.find((m) => m.id === 'fs-printer')?.watch).toBeUndefined();
     // And said in that machine's log (the other's has nothing to say).
-    const { getRuntime } = await import('../fleet/fleet');
     const warned = (id: string) =>
       getRuntime(id)
         ?.log.store.getState()

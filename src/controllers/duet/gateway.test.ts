@@ -1,13 +1,9 @@
 import { afterEach, describe, expect, it } from 'vitest';
-import { WebSocket as NodeWebSocket } from 'ws';
-import { startGateway, tempDir } from '../../../gateway/test-util';
-import type { SessionContext } from '../../fleet/contract';
 import { createContext } from '../../fleet/fleet';
 import { alwaysVisible } from '../../fleet/link';
-import { apiOrigin, setApiOrigin } from '../../fleet/origin';
-import { duetFamily } from './family';
 import { DuetSession } from './session';
 import { DuetSimulator } from './sim/simulator';
+import { duetRig, until } from './test-rig';
 
 /**
  * The Duet browser session through the real gateway, which holds the DSF session: the page
@@ -20,78 +16,16 @@ afterEach(async () => {
   for (const c of cleanups.splice(0).reverse()) await c();
 });
 
-async function until(pred: () => boolean, ms = 15_000): Promise<void> {
-  const end = Date.now() + ms;
-  while (!pred()) {
-    if (Date.now() > end) throw new Error('condition not met in time');
-    await new Promise((r) => setTimeout(r, 20));
-  }
-}
-
-interface Rig {
-  sim: () => DuetSimulator;
-  session: DuetSession;
-  ctx: SessionContext;
-}
-
-async function rig(simPassword: string, configured?: string): Promise<Rig> {
-  const t = tempDir();
-  cleanups.push(t.cleanup);
-  let sim: DuetSimulator | null = null;
-  const gw = await startGateway({
-    machines: {
-      file: null,
-      machines: [
-        {
-          id: 'dsim',
-          name: 'Duet sim',
-          kind: 'duet',
-          simulated: true,
-          url: null,
-          wsUrl: null,
-          secrets: configured ? { password: configured } : {},
-        },
-      ],
-    },
-    families: {
-      duet: {
-        ...duetFamily,
-        createSimulator: (o) => (sim = new DuetSimulator({ ...o, password: simPassword, tickMs: 100 })),
-      },
-    },
-    dataDir: t.dir,
-    env: {},
+const rig = (simPassword: string, configured?: string) =>
+  duetRig({
+    id: 'dsim',
+    name: 'Duet',
+    configured,
+    simulated: false,
+    pageSockets: true,
+    makeSim: (o) => new DuetSimulator({ ...o, password: simPassword, tickMs: 100 }),
+    cleanups,
   });
-  cleanups.push(gw.close);
-  // The page's origin is the gateway; its sockets send that Origin, as a browser does.
-  const origin = apiOrigin();
-  const PageSocket = class extends NodeWebSocket {
-    constructor(url: string | URL, protocols?: string | string[]) {
-      super(url, protocols, { origin: gw.url });
-    }
-  };
-  const previous = globalThis.WebSocket;
-  setApiOrigin(gw.url);
-  (globalThis as { WebSocket?: unknown }).WebSocket = PageSocket;
-  cleanups.push(() => {
-    setApiOrigin(origin);
-    (globalThis as { WebSocket?: unknown }).WebSocket = previous;
-  });
-  const ctx = createContext(
-    { id: 'dsim', name: 'Duet', kind: 'duet', simulated: false },
-    { visibility: alwaysVisible, principal: () => ({ name: 'tester', role: 'supervisor' }) },
-  );
-  const session = new DuetSession(ctx);
-  cleanups.push(() => session.stop());
-  return {
-    sim: () => {
-      if (!sim) throw new Error('the gateway made no simulator');
-      return sim;
-    },
-    session,
-    ctx,
-  };
-}
 
 describe('DuetSession through the gateway (the gateway holds the DSF session)', () => {
   it('goes online without ever holding a session key; socket and commands work', async () => {

@@ -1,13 +1,12 @@
 import { afterEach, describe, expect, it } from 'vitest';
 import path from 'node:path';
 import { consoleFetch, login, startGateway, tempDir, user, writeJson } from '../../../gateway/test-util';
-import type { SessionContext } from '../../fleet/contract';
 import { createContext } from '../../fleet/fleet';
 import { alwaysVisible } from '../../fleet/link';
-import { apiOrigin, setApiOrigin } from '../../fleet/origin';
 import { duetFamily } from './family';
 import { DuetSession } from './session';
 import { FILELIST_PAGE, MAX_SESSIONS, RrfSimulator } from './sim/standalone';
+import { duetRig, until } from './test-rig';
 
 /**
  * Issue 20: a Duet without an SBC (standalone RepRapFirmware, `rr_*`) through the real gateway.
@@ -21,67 +20,15 @@ afterEach(async () => {
   for (const c of cleanups.splice(0).reverse()) await c();
 });
 
-async function until(pred: () => boolean, ms = 15_000): Promise<void> {
-  const end = Date.now() + ms;
-  while (!pred()) {
-    if (Date.now() > end) throw new Error('condition not met in time');
-    await new Promise((r) => setTimeout(r, 20));
-  }
-}
-
-interface Rig {
-  sim: () => RrfSimulator;
-  session: DuetSession;
-  ctx: SessionContext;
-}
-
-async function rig(simPassword: string | null, configured?: string): Promise<Rig> {
-  const t = tempDir();
-  cleanups.push(t.cleanup);
-  let sim: RrfSimulator | null = null;
-  const gw = await startGateway({
-    machines: {
-      file: null,
-      machines: [
-        {
-          id: 'rsim',
-          name: 'Duet 2 sim',
-          kind: 'duet',
-          simulated: true,
-          url: null,
-          wsUrl: null,
-          secrets: configured ? { password: configured } : {},
-        },
-      ],
-    },
-    families: {
-      duet: {
-        ...duetFamily,
-        createSimulator: (o) => (sim = new RrfSimulator({ ...o, password: simPassword, tickMs: 100 })),
-      },
-    },
-    dataDir: t.dir,
-    env: {},
+const rig = (simPassword: string | null, configured?: string) =>
+  duetRig({
+    id: 'rsim',
+    name: 'Duet 2',
+    configured,
+    simulated: true,
+    makeSim: (o) => new RrfSimulator({ ...o, password: simPassword, tickMs: 100 }),
+    cleanups,
   });
-  cleanups.push(gw.close);
-  const origin = apiOrigin();
-  setApiOrigin(gw.url);
-  cleanups.push(() => setApiOrigin(origin));
-  const ctx = createContext(
-    { id: 'rsim', name: 'Duet 2', kind: 'duet', simulated: true },
-    { visibility: alwaysVisible, principal: () => ({ name: 'tester', role: 'supervisor' }) },
-  );
-  const session = new DuetSession(ctx);
-  cleanups.push(() => session.stop());
-  return {
-    sim: () => {
-      if (!sim) throw new Error('the gateway made no simulator');
-      return sim;
-    },
-    session,
-    ctx,
-  };
-}
 
 const status = (s: DuetSession) => s.store.getState().model?.state.status;
 
