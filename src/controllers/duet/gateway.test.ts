@@ -3,7 +3,7 @@ import { createContext } from '../../fleet/fleet';
 import { alwaysVisible } from '../../fleet/link';
 import { DuetSession } from './session';
 import { DuetSimulator } from './sim/simulator';
-import { duetRig, until } from './test-rig';
+import { duetRig, until } from '../../../gateway/test-util-duet';
 
 /**
  * The Duet browser session through the real gateway, which holds the DSF session: the page

@@ -6,7 +6,7 @@ import { alwaysVisible } from '../../fleet/link';
 import { duetFamily } from './family';
 import { DuetSession } from './session';
 import { FILELIST_PAGE, MAX_SESSIONS, RrfSimulator } from './sim/standalone';
-import { duetRig, until } from './test-rig';
+import { duetRig, until } from '../../../gateway/test-util-duet';
 
 /**
  * Issue 20: a Duet without an SBC (standalone RepRapFirmware, `rr_*`) through the real gateway.

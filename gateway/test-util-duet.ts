@@ -1,15 +1,16 @@
 import { WebSocket as NodeWebSocket } from 'ws';
-import { startGateway, tempDir } from '../../../gateway/test-util';
-import type { SessionContext } from '../../fleet/contract';
-import { createContext } from '../../fleet/fleet';
-import { alwaysVisible } from '../../fleet/link';
-import { apiOrigin, setApiOrigin } from '../../fleet/origin';
-import type { SimOptions, Simulator } from '../../fleet/sim';
-import { duetFamily } from './family';
-import { DuetSession } from './session';
+import { startGateway, tempDir } from './test-util';
+import type { SessionContext } from '../src/fleet/contract';
+import { createContext } from '../src/fleet/fleet';
+import { alwaysVisible } from '../src/fleet/link';
+import { apiOrigin, setApiOrigin } from '../src/fleet/origin';
+import type { SimOptions, Simulator } from '../src/fleet/sim';
+import { duetFamily } from '../src/controllers/duet/family';
+import { DuetSession } from '../src/controllers/duet/session';
 
 /**
- * For tests: one Duet behind the real gateway, answered by the simulator `makeSim` makes, and a
+ * For tests (here, not in src/: browser code never imports the gateway, gateway/bundle.test.ts):
+ * one Duet behind the real gateway, answered by the simulator `makeSim` makes, and a
  * page's DuetSession on it (not started). Everything it sets up is undone by the `cleanups` the
  * test file runs after each test.
  */
