@@ -1,6 +1,6 @@
 import { afterEach, beforeEach, describe, expect, it, vi } from 'vitest';
 import { authStore } from '../../fleet/auth';
-import { auditQuery, elevate, fetchSession, sessionExtra, trackActivity } from './api';
+import { auditQuery, elevate, fetchSession, logout, sessionExtra, trackActivity } from './api';
 
 function json(body: unknown, status = 200): Response {
   return new Response(JSON.stringify(body), { status, headers: { 'Content-Type': 'application/json' } });
@@ -75,6 +75,44 @@ describe('auth api', () => {
     vi.advanceTimersByTime(61_000);
     target.dispatchEvent(new Event('keydown'));
     expect(fetchMock).toHaveBeenCalledTimes(2);
+  });
+
+  it('signing out clears this browser’s storage (unsaved drafts of machine settings), even when the gateway is unreachable', async () => {
+    const storage = (): Storage => {
+      const m = new Map<string, string>();
+      return {
+        get length() {
+          return m.size;
+        },
+        clear: () => m.clear(),
+        getItem: (k: string) => m.get(k) ?? null,
+        key: (i: number) => [...m.keys()][i] ?? null,
+        removeItem: (k: string) => void m.delete(k),
+        setItem: (k: string, v: string) => void m.set(k, v),
+      };
+    };
+    for (const reachable of [true, false]) {
+      const local = storage();
+      const session = storage();
+      local.setItem('shopdeck.form.plasma-1.settings', '{"thcVoltage":"130"}');
+      session.setItem('anything', '1');
+      vi.stubGlobal('localStorage', local);
+      vi.stubGlobal('sessionStorage', session);
+      const fetchMock = vi.fn<typeof fetch>(() =>
+        reachable
+          ? Promise.resolve(json({ mode: 'secured', user: null }))
+          : Promise.reject(new TypeError('offline')),
+      );
+      vi.stubGlobal('fetch', fetchMock);
+      authStore.setState({ mode: 'secured', user: { name: 'sue', role: 'supervisor', machines: null } });
+      await logout();
+      expect(fetchMock.mock.calls[0]?.[0]).toBe('/api/logout');
+      expect(fetchMock.mock.calls[0]?.[1]?.method).toBe('POST');
+      expect(local.length, `reachable: ${reachable}`).toBe(0);
+      expect(session.length, `reachable: ${reachable}`).toBe(0);
+      expect(authStore.getState().user).toBeNull();
+      vi.unstubAllGlobals();
+    }
   });
 
   it('builds audit queries with ISO times', () => {

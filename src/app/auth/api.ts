@@ -127,8 +127,31 @@ export async function login(name: string, password: string): Promise<SessionInfo
   return sessionFrom(r);
 }
 
+/**
+ * What signing out forgets in this browser. The gateway's logout answer says `Clear-Site-Data:
+ * "cache", "storage"` (gateway/page-headers.ts), but browsers honour it only in a secure context
+ * and only when the answer arrives: the page clears its own storage too (the forms' unsaved
+ * drafts of machine settings live in localStorage: src/forms/storage.ts), so nothing of the
+ * signed-out person's work is left for the next one on a shared tablet, over plain HTTP on the
+ * shop network or with the gateway unreachable. Machine answers are never cached (no-store; the
+ * service worker caches only the app shell). The callers then load `/login` afresh, which also
+ * drops everything held in memory.
+ */
+export function forgetLocalData(
+  g: { localStorage?: Pick<Storage, 'clear'>; sessionStorage?: Pick<Storage, 'clear'> } = globalThis,
+): void {
+  for (const read of [() => g.localStorage, () => g.sessionStorage]) {
+    try {
+      read()?.clear();
+    } catch {
+      // storage disabled (private mode, policy): nothing kept there either
+    }
+  }
+}
+
 export async function logout(): Promise<void> {
   await post('/api/logout').catch(() => undefined);
+  forgetLocalData();
   authStore.setState({ user: null });
   sessionExtra.setState({ elevation: null, idleTimeoutS: null, expired: false });
 }
