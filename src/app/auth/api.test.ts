@@ -115,6 +115,27 @@ describe('auth api', () => {
     }
   });
 
+  it('a session that expired (idle timeout) clears this browser’s storage; a live one does not', async () => {
+    const kept = new Map<string, string>([['draft', '{"edits":1}']]);
+    const local = { clear: () => kept.clear() };
+    vi.stubGlobal('localStorage', local);
+    vi.stubGlobal('sessionStorage', { clear: () => undefined });
+    const sue = { name: 'sue', role: 'supervisor', machines: null };
+    vi.stubGlobal(
+      'fetch',
+      vi.fn<typeof fetch>(() => Promise.resolve(json({ mode: 'secured', user: sue, idleTimeoutS: 3600 }))),
+    );
+    await fetchSession();
+    expect(kept.size).toBe(1);
+    vi.stubGlobal(
+      'fetch',
+      vi.fn<typeof fetch>(() => Promise.resolve(json({ mode: 'secured', user: null, expired: true }))),
+    );
+    await fetchSession();
+    expect(kept.size).toBe(0);
+    expect(authStore.getState().user).toBeNull();
+  });
+
   it('builds audit queries with ISO times', () => {
     expect(
       auditQuery({ machine: ' laser-1 ', user: '', from: '2026-01-05T10:00:00Z' }, { offset: 50, limit: 50 }),

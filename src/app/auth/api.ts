@@ -62,6 +62,9 @@ export class AuthError extends Error {
 let elevationTimer: ReturnType<typeof setTimeout> | null = null;
 
 function apply(s: SessionInfo): SessionInfo {
+  // The session ended by itself (idle timeout): as at sign-out, nothing of that person's work
+  // stays for whoever picks the tablet up next (forgetLocalData, below).
+  if (s.expired && !s.user) forgetLocalData();
   authStore.setState({ mode: s.mode, user: s.user, openOnNetwork: s.openOnNetwork === true });
   const until = s.elevation ? Date.parse(s.elevation.until) : NaN;
   sessionExtra.setState({
@@ -135,7 +138,8 @@ export async function login(name: string, password: string): Promise<SessionInfo
  * signed-out person's work is left for the next one on a shared tablet, over plain HTTP on the
  * shop network or with the gateway unreachable. Machine answers are never cached (no-store; the
  * service worker caches only the app shell). The callers then load `/login` afresh, which also
- * drops everything held in memory.
+ * drops everything held in memory. The same when the gateway says the session expired (idle
+ * timeout): the next person must not find the last one's drafts.
  */
 export function forgetLocalData(
   g: { localStorage?: Pick<Storage, 'clear'>; sessionStorage?: Pick<Storage, 'clear'> } = globalThis,
