@@ -127,6 +127,10 @@ export async function login(name: string, password: string): Promise<SessionInfo
   if (r.status === 401) throw await errorOf(r, 'Wrong name or password.');
   if (r.status === 429) throw await errorOf(r, 'Too many failed logins: wait and try again.');
   if (!r.ok) throw await errorOf(r, `Login failed (HTTP ${r.status}).`);
+  // Drafts belong to the session they were made in: whatever is left from before this login
+  // (a session that ended without a logout, e.g. the browser closed: its cookie went with it)
+  // is someone else's.
+  forgetLocalData();
   return sessionFrom(r);
 }
 
