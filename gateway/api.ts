@@ -8,6 +8,7 @@ import { discoverXtool } from './discovery';
 import { clientAddress, parseCookies, readJson, sendJson } from './http-util';
 import type { WatchSummary } from '../src/fleet/contract';
 import { machineInfo } from './machines';
+import { LOGOUT_CLEAR_SITE_DATA } from './page-headers';
 import { createSimApi, SIM_API_PATH } from './sim-api';
 import { PIN_RULE, checkSecret } from './users';
 import type { GatewayContext, Principal, Who } from './context';
@@ -250,6 +251,10 @@ export function createApi(ctx: GatewayContext, stores: ApiStores = createAlarmSt
           { mode: users.mode, user: null, idleTimeoutS: null, elevation: null, expired: false },
           {
             'Set-Cookie': cookie(req, '', 0),
+            // Nothing of the session stays on a shared tablet: the HTTP cache, and storage
+            // (unsaved form drafts in localStorage, any Cache Storage; this also unregisters the
+            // service worker: the page navigates to /login right after, which registers it again).
+            'Clear-Site-Data': LOGOUT_CLEAR_SITE_DATA,
           },
         );
         return;

@@ -1,5 +1,6 @@
 import type { IncomingMessage, ServerResponse } from 'node:http';
 import type { Duplex } from 'node:stream';
+import { forceNoStore } from './answer-headers';
 import { createApi } from './api';
 import { createContext, type GatewayOptions } from './context';
 import type { AuditLog } from './audit';
@@ -163,6 +164,7 @@ export function createGateway(opts: GatewayOptions): Gateway {
       next();
       return;
     }
+    forceNoStore(res);
     const run = async (): Promise<void> => {
       if (!hostAllowed(req)) {
         req.resume();

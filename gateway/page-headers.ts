@@ -33,6 +33,25 @@ export function pageCsp(dev: boolean): string {
   ].join('; ');
 }
 
+/**
+ * What logout tells the browser to forget (`Clear-Site-Data`), for the whole origin:
+ *
+ * - `"cache"`: the HTTP cache (and, in Chrome, the back/forward cache). Machine answers are
+ *   `no-store` anyway (answer-headers.ts); this also drops whatever an older version kept.
+ * - `"storage"`: localStorage (the forms' unsaved drafts of machine settings, src/forms/storage.ts;
+ *   view and theme preferences go too), sessionStorage, IndexedDB, Cache Storage, and the service
+ *   worker's registration. The service worker caches only the app shell (src/app/pwa/options.ts:
+ *   no runtime caching, never `/api` or `/machines`), but a supervisor's drafts are machine data.
+ *   Unregistering costs nothing lasting: the page goes to `/login` right after logout (a full
+ *   load from the server, which has just answered), and that load registers the worker again and
+ *   precaches the shell, so an installed or kiosk tablet still starts offline.
+ *
+ * Not `"cookies"`: the session cookie is already expired by the same answer, and clearing
+ * cookies would end the sessions of other tabs' users on the same origin only by accident.
+ * Browsers honour Clear-Site-Data in secure contexts only (HTTPS, or localhost).
+ */
+export const LOGOUT_CLEAR_SITE_DATA = '"cache", "storage"';
+
 export function pageHeaders(dev: boolean): Record<string, string> {
   return {
     'Content-Security-Policy': pageCsp(dev),

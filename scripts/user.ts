@@ -8,8 +8,8 @@ import {
   dataDirPath,
   hashSecret,
   readUsers,
+  updateUsers,
   usersFilePath,
-  writeUsers,
   type UserRecord,
 } from '../gateway/users';
 import { MACHINE_ID, ROLES, type Role } from '../src/fleet/types';
@@ -29,6 +29,10 @@ import { MACHINE_ID, ROLES, type Role } from '../src/fleet/types';
  *
  * Passwords are asked on the terminal (not echoed); with --password-stdin the first line of
  * standard input is the password and, with --pin, the second line the PIN.
+ *
+ * Several runs at once lose nothing: each change is made under the users file's lock on a fresh
+ * read of the file, and written atomically (gateway/users.ts `updateUsers`). Passwords are asked
+ * and hashed before the lock is taken, so a run waiting at a prompt holds nobody up.
  */
 
 const USAGE = `usage: npm run user -- add <name> --role <${ROLES.join('|')}> [--machines a,b] [--pin] [--password-stdin]
@@ -160,11 +164,26 @@ export async function main(
   const role = option(args, '--role');
   const machines = option(args, '--machines');
   const [command, name, extra] = args;
+  // What is on disk now: for the list, and to refuse at once (before asking for a password)
+  // what cannot be done. Every change is then made under the users file's lock on a fresh read
+  // (`updateUsers`: another run may have changed the file meanwhile) and checked again there.
   const users: UserRecord[] = readUsers(file) ?? [];
-  const find = (n: string | undefined): UserRecord => {
-    const u = users.find((x) => x.name === n);
+  const findIn = (list: UserRecord[], n: string | undefined): UserRecord => {
+    const u = list.find((x) => x.name === n);
     if (!u) throw new UsageError(`no user "${n ?? ''}" in ${file}`);
     return u;
+  };
+  const find = (n: string | undefined): UserRecord => findIn(users, n);
+  /** Changes the named user under the lock; returns the user as written. */
+  const change = async (n: string | undefined, edit: (u: UserRecord) => void): Promise<UserRecord> => {
+    let changed: UserRecord | null = null;
+    await updateUsers(file, (list) => {
+      const u = findIn(list, n);
+      edit(u);
+      changed = u;
+      return list;
+    });
+    return changed ?? find(n);
   };
   const log = (
     type: 'user-added' | 'user-removed' | 'role-change' | 'password-change',
@@ -174,13 +193,16 @@ export async function main(
   ): void => {
     audit.append({ type, result: 'ok', user, source: 'cli', detail: `${detail}, by ${by}`, role: r });
   };
+  const exists = (list: UserRecord[], n: string): void => {
+    if (list.some((u) => u.name === n))
+      throw new UsageError(`user "${n}" exists: use role/passwd/pin/machines`);
+  };
 
   switch (command) {
     case 'add': {
       if (!name || !USER_NAME.test(name))
         throw new UsageError('add: give a user name (letters, digits, . _ @ -)');
-      if (users.some((u) => u.name === name))
-        throw new UsageError(`user "${name}" exists: use role/passwd/pin/machines`);
+      exists(users, name);
       const r = parseRole(role);
       const password = await readSecret('password', fromStdin, 0, io);
       const pin = withPin ? await readSecret('PIN', fromStdin, 1, io) : null;
@@ -191,47 +213,62 @@ export async function main(
         passwordHash: await hashSecret(password, cost),
         pinHash: pin ? await hashSecret(pin, cost) : null,
       };
-      users.push(u);
-      writeUsers(file, users);
+      const after = await updateUsers(file, (list) => {
+        exists(list, name);
+        return [...list, u];
+      });
       log('user-added', name, `added as ${r}${u.machines ? ` for ${u.machines.join(', ')}` : ''}`, r);
-      return `added ${name} (${r}) to ${file}${users.length === 1 ? '\naccess control is on: the console no longer runs open' : ''}`;
+      return `added ${name} (${r}) to ${file}${after.length === 1 ? '\naccess control is on: the console no longer runs open' : ''}`;
     }
     case 'role': {
-      const u = find(name);
+      find(name);
       const r = parseRole(extra ?? role);
-      const before = u.role;
-      u.role = r;
-      writeUsers(file, users);
+      let before: Role = r;
+      const u = await change(name, (x) => {
+        before = x.role;
+        x.role = r;
+      });
       log('role-change', u.name, `${before} → ${r}`, r);
       return `${u.name}: ${before} → ${r}`;
     }
     case 'machines': {
-      const u = find(name);
-      u.machines = parseMachines(extra ?? machines ?? 'all');
-      writeUsers(file, users);
-      log('role-change', u.name, `machines: ${u.machines ? u.machines.join(', ') : 'all'}`, u.role);
-      return `${u.name}: machines ${u.machines ? u.machines.join(', ') : 'all'}`;
+      find(name);
+      const list = parseMachines(extra ?? machines ?? 'all');
+      const u = await change(name, (x) => {
+        x.machines = list;
+      });
+      log('role-change', u.name, `machines: ${list ? list.join(', ') : 'all'}`, u.role);
+      return `${u.name}: machines ${list ? list.join(', ') : 'all'}`;
     }
     case 'passwd': {
-      const u = find(name);
-      u.passwordHash = await hashSecret(await readSecret('password', fromStdin, 0, io), cost);
-      writeUsers(file, users);
+      find(name);
+      const hash = await hashSecret(await readSecret('password', fromStdin, 0, io), cost);
+      const u = await change(name, (x) => {
+        x.passwordHash = hash;
+      });
       log('password-change', u.name, 'password changed');
       return `${u.name}: password changed`;
     }
     case 'pin': {
-      const u = find(name);
-      u.pinHash = await hashSecret(await readSecret('PIN', fromStdin, 0, io), cost);
-      writeUsers(file, users);
+      find(name);
+      const hash = await hashSecret(await readSecret('PIN', fromStdin, 0, io), cost);
+      const u = await change(name, (x) => {
+        x.pinHash = hash;
+      });
       log('password-change', u.name, 'PIN set');
       return `${u.name}: PIN set${u.role === 'supervisor' ? '' : ' (only a supervisor PIN unlocks a tablet)'}`;
     }
     case 'remove': {
-      const u = find(name);
-      users.splice(users.indexOf(u), 1);
-      writeUsers(file, users);
+      find(name);
+      let removed: UserRecord | null = null;
+      const after = await updateUsers(file, (list) => {
+        const u = findIn(list, name);
+        removed = u;
+        return list.filter((x) => x !== u);
+      });
+      const u = removed ?? find(name);
       log('user-removed', u.name, 'removed', u.role);
-      return `removed ${u.name}${users.length === 0 ? ' (no users left: nobody can log in; delete the file to run open)' : ''}`;
+      return `removed ${u.name}${after.length === 0 ? ' (no users left: nobody can log in; delete the file to run open)' : ''}`;
     }
     case 'list': {
       if (!users.length) return `no users in ${file}: the console runs open`;

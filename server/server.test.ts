@@ -432,7 +432,19 @@ describe('HTTPS', () => {
     expect(
       (await request(`${s.base}/${APP}`, { ca: caPem })).headers['strict-transport-security'],
     ).toBeDefined();
-    expect((await request(`${s.base}/shopdeck-ca.crt`, { ca: caPem })).body.toString()).toBe(caPem);
+    // The CA over HTTPS: the file, and a page with its fingerprint and the download link.
+    const caDownload = await request(`${s.base}/shopdeck-ca.crt`, { ca: caPem });
+    expect(caDownload.body.toString()).toBe(caPem);
+    expect(caDownload.headers['content-type']).toBe('application/x-x509-ca-cert');
+    const caPage = await request(`${s.base}/shopdeck-ca`, { ca: caPem });
+    expect(caPage.status).toBe(200);
+    expect(caPage.headers['content-type']).toMatch(/^text\/html/);
+    expect(caPage.headers['content-security-policy']).toContain("frame-ancestors 'none'");
+    expect(caPage.body.toString()).toContain(ca.fingerprint256);
+    expect(caPage.body.toString()).toContain('href="/shopdeck-ca.crt"');
+    expect(caPage.body.toString()).not.toContain('BEGIN CERTIFICATE');
+    // The start output says where that page is, over HTTPS.
+    expect(text).toMatch(new RegExp(`https://127\\.0\\.0\\.1:${s.port}/shopdeck-ca `));
 
     const login = await request(`${s.base}/api/login`, {
       ca: caPem,
@@ -446,6 +458,26 @@ describe('HTTPS', () => {
     expect(cookie).toMatch(/; Secure/);
     expect(cookie).toMatch(/HttpOnly/);
 
+    // Finding 5 on the real server: a (simulated) machine's answer and /api answers are never
+    // kept, and logout tells the browser to forget its cache and storage.
+    const session = cookie.split(';')[0] ?? '';
+    for (const p of ['/machines/demo-prunt/update_check', '/api/machines', '/api/session']) {
+      const r = await request(`${s.base}${p}`, {
+        ca: caPem,
+        headers: { Cookie: session, 'X-Shopdeck': '1' },
+      });
+      expect(r.headers['cache-control'], `${p} (${r.status})`).toBe('no-store');
+      expect(r.headers.etag, p).toBeUndefined();
+    }
+    const logout = await request(`${s.base}/api/logout`, {
+      ca: caPem,
+      method: 'POST',
+      headers: { Cookie: session, 'X-Shopdeck': '1' },
+    });
+    expect(logout.status).toBe(200);
+    expect(logout.headers['clear-site-data']).toBe('"cache", "storage"');
+    expect(logout.headers['cache-control']).toBe('no-store');
+
     const redirectPort = Number(/plain HTTP on port (\d+) redirects/.exec(text)?.[1]);
     const redirected = await request(`http://127.0.0.1:${redirectPort}/m/x?tab=2`);
     expect(redirected.status).toBe(301);
@@ -458,6 +490,27 @@ describe('HTTPS', () => {
     const evil = await request(`http://127.0.0.1:${redirectPort}/`, { headers: { Host: 'evil.example' } });
     expect(evil.headers.location).toBe(`https://127.0.0.1:${s.port}/`);
 
+    // Finding 16: the CA a tablet is told to trust is never served over plain HTTP (anyone on
+    // the Wi-Fi could swap it for their own): the redirect port only redirects, for every
+    // spelling of its path and method.
+    for (const p of [
+      '/shopdeck-ca.crt',
+      '/shopdeck-ca.crt?x=1',
+      '/shopdeck-ca',
+      '/SHOPDECK-CA.CRT',
+      '//shopdeck-ca.crt',
+    ]) {
+      for (const method of ['GET', 'HEAD']) {
+        const plainCa = await request(`http://127.0.0.1:${redirectPort}${p}`, { method });
+        expect(plainCa.status, `${method} ${p}`).toBe(301);
+        expect(plainCa.headers.location, `${method} ${p}`).toMatch(
+          new RegExp(`^https://127\\.0\\.0\\.1:${s.port}/`),
+        );
+        expect(plainCa.headers['content-type'], `${method} ${p}`).toBeUndefined();
+        expect(plainCa.body.toString(), `${method} ${p}`).toBe('');
+      }
+    }
+
     s.child.kill('SIGTERM');
     expect((await s.exited).code).toBe(0);
     const audit = readFileSync(path.join(dataDir, 'audit.jsonl'), 'utf8');
@@ -468,7 +521,8 @@ describe('HTTPS', () => {
     const start = again.entries.find((e) => e.msg === 'listening');
     expect(start?.https).toMatchObject({ source: 'self-signed', fingerprint: printed });
     expect((await request(`${again.base}/`, { ca: caPem })).peerFingerprint).toBe(printed);
-  });
+    // Two server starts and some forty requests on a machine shared with other work: generous.
+  }, 60_000);
 
   it('serves the certificate and key of SHOPDECK_TLS_CERT and SHOPDECK_TLS_KEY', async () => {
     const made = mkdtempSync(path.join(work, 'data-made-'));

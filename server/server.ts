@@ -37,7 +37,9 @@ import {
  *   served.
  * - `/healthz`: whether the machines and users files loaded (503 when not, or while stopping).
  * - HTTPS (`SHOPDECK_TLS_CERT`/`_KEY`, or `SHOPDECK_HTTPS=1` for a kept self-signed certificate)
- *   with HSTS; `SHOPDECK_HTTP_REDIRECT_PORT` answers plain HTTP with a redirect only.
+ *   with HSTS; `SHOPDECK_HTTP_REDIRECT_PORT` answers plain HTTP with a redirect only (the CA
+ *   download too). The made certificate's CA is offered over HTTPS only: `/shopdeck-ca` (a page
+ *   with its SHA-256 fingerprint, also printed at start) and `/shopdeck-ca.crt` (the file).
  * - `close()`: stops accepting, closes WebSockets with 1001 (going away), closes the gateway
  *   (which writes pending audit summaries), syncs the audit log to disk; within 5 s.
  */
@@ -46,8 +48,43 @@ export const IMMUTABLE = 'public, max-age=31536000, immutable';
 export const HSTS = 'max-age=31536000';
 export const DEFAULT_PORT = 4173;
 export const DEFAULT_HOST = 'localhost';
-/** Where a tablet downloads the self-signed certificate's CA to trust it. */
+/** Where a tablet downloads the self-signed certificate's CA to trust it (over HTTPS only). */
 export const CA_PATH = '/shopdeck-ca.crt';
+/** The page that offers that download, with the CA's SHA-256 fingerprint to compare (HTTPS only). */
+export const CA_PAGE_PATH = '/shopdeck-ca';
+
+const escapeHtml = (t: string): string => t.replace(/[&<>"']/g, (c) => `&#${c.charCodeAt(0)};`);
+
+/**
+ * The CA download page: the fingerprint the tablet must show for the downloaded certificate (the
+ * same one the server printed at start), the link, and where to switch it on. No script: it is
+ * served under the console's page CSP like every page.
+ */
+export function caPageHtml(caFingerprint: string): string {
+  const fp = escapeHtml(caFingerprint);
+  return `<!doctype html>
+<html lang="en"><head><meta charset="utf-8"><meta name="viewport" content="width=device-width, initial-scale=1">
+<title>Shopdeck: trust this console on a tablet</title>
+<style>body{font:16px/1.5 system-ui,sans-serif;max-width:40rem;margin:2rem auto;padding:0 1rem}code{font-size:1.05rem;word-break:break-all;background:#eef1f5;padding:.2rem .3rem}a.button{display:inline-block;padding:.6rem 1rem;border:1px solid #246;border-radius:.3rem;text-decoration:none}</style>
+</head><body>
+<h1>Trust this console on a tablet</h1>
+<p>The console's HTTPS certificate is signed by its own small certificate authority. Install that
+authority on the tablet once; after that, the tablet opens the console without a warning.</p>
+<p><strong>SHA-256 fingerprint of the authority:</strong><br><code id="ca-fingerprint">${fp}</code></p>
+<p>Before you trust it, compare this fingerprint with the one the server printed when it started
+(<em>CA SHA-256 …</em>) and with the one the tablet shows for the downloaded certificate. If they
+differ, do not install it: someone is between the tablet and the console.</p>
+<p><a class="button" href="${CA_PATH}" download="shopdeck-ca.crt">Download the certificate authority</a></p>
+<h2>Then</h2>
+<ul>
+<li><strong>Android</strong>: Settings → Security → Encryption &amp; credentials → Install a certificate → CA certificate.</li>
+<li><strong>iPad</strong>: Settings → General → VPN &amp; Device Management → install the downloaded profile, then
+Settings → General → About → Certificate Trust Settings → switch it on.</li>
+</ul>
+<p><a href="/">Back to the console</a></p>
+</body></html>
+`;
+}
 
 export type HttpsSetting = 'off' | 'self-signed' | { certFile: string; keyFile: string };
 
@@ -372,6 +409,18 @@ export function createShopdeckServer(opts: ShopdeckServerOptions): ShopdeckServe
     res.end(method === 'HEAD' ? undefined : ca.pem);
   }
 
+  function serveCaPage(res: ServerResponse, method: string): void {
+    const ca = tls?.ca;
+    if (!ca) return notFound(res);
+    const html = caPageHtml(ca.fingerprint);
+    res.writeHead(200, {
+      'Content-Type': 'text/html; charset=utf-8',
+      'Content-Length': Buffer.byteLength(html),
+      'Cache-Control': 'no-store',
+    });
+    res.end(method === 'HEAD' ? undefined : html);
+  }
+
   function afterGateway(req: IncomingMessage, res: ServerResponse): void {
     const raw = req.url ?? '/';
     const pathname = raw.split(/[?#]/, 1)[0] ?? '/';
@@ -396,7 +445,10 @@ export function createShopdeckServer(opts: ShopdeckServerOptions): ShopdeckServe
       return plain(res, 405, 'method not allowed', { Allow: 'GET, HEAD' });
     // pageHeadersMiddleware refuses "*.map"; its precompressed copies too.
     if (/\.map(?:\.br|\.gz)?$/i.test(pathname)) return notFound(res);
+    // Only this server answers these: it is HTTPS whenever there is a CA (the redirect port
+    // below serves nothing but redirects).
     if (pathname === CA_PATH) return serveCa(res, method);
+    if (pathname === CA_PAGE_PATH) return serveCaPage(res, method);
     if (pathname.startsWith('/assets/')) return assets(req, res, () => notFound(res));
     pages(req, res, () => notFound(res));
   }
@@ -451,8 +503,9 @@ export function createShopdeckServer(opts: ShopdeckServerOptions): ShopdeckServe
     tls && redirectPort !== null
       ? http.createServer((req, res) => {
           const method = (req.method ?? 'GET').toUpperCase();
-          const pathname = (req.url ?? '/').split(/[?#]/, 1)[0];
-          if (pathname === CA_PATH && (method === 'GET' || method === 'HEAD')) return serveCa(res, method);
+          // Redirects only, the CA download included: a certificate to trust, fetched in clear,
+          // could be anyone's on the way (the tablet follows the redirect to HTTPS, accepts the
+          // warning once, and compares the fingerprint on the page with the printed one).
           if (method !== 'GET' && method !== 'HEAD')
             return plain(res, 400, 'this port only redirects to HTTPS: nothing was done');
           const name = hostnameOf(req);
@@ -539,8 +592,8 @@ export function createShopdeckServer(opts: ShopdeckServerOptions): ShopdeckServe
       );
       if (tls.ca)
         lines.push(
-          `            tablets: download ${info.urls[info.urls.length - 1]?.replace(/\/$/, '') ?? ''}${CA_PATH} and trust it` +
-            ` (CA SHA-256 ${tls.ca.fingerprint})`,
+          `            tablets: open ${info.urls[info.urls.length - 1]?.replace(/\/$/, '') ?? ''}${CA_PAGE_PATH} ` +
+            `(HTTPS only), install the CA it offers and trust it if it shows CA SHA-256 ${tls.ca.fingerprint}`,
         );
       if (info.redirectPort !== null)
         lines.push(`  plain HTTP on port ${info.redirectPort} redirects to HTTPS`);

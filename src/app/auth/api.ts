@@ -62,6 +62,9 @@ export class AuthError extends Error {
 let elevationTimer: ReturnType<typeof setTimeout> | null = null;
 
 function apply(s: SessionInfo): SessionInfo {
+  // The session ended by itself (idle timeout): as at sign-out, nothing of that person's work
+  // stays for whoever picks the tablet up next (forgetLocalData, below).
+  if (s.expired && !s.user) forgetLocalData();
   authStore.setState({ mode: s.mode, user: s.user, openOnNetwork: s.openOnNetwork === true });
   const until = s.elevation ? Date.parse(s.elevation.until) : NaN;
   sessionExtra.setState({
@@ -124,11 +127,39 @@ export async function login(name: string, password: string): Promise<SessionInfo
   if (r.status === 401) throw await errorOf(r, 'Wrong name or password.');
   if (r.status === 429) throw await errorOf(r, 'Too many failed logins: wait and try again.');
   if (!r.ok) throw await errorOf(r, `Login failed (HTTP ${r.status}).`);
+  // Drafts belong to the session they were made in: whatever is left from before this login
+  // (a session that ended without a logout, e.g. the browser closed: its cookie went with it)
+  // is someone else's.
+  forgetLocalData();
   return sessionFrom(r);
+}
+
+/**
+ * What signing out forgets in this browser. The gateway's logout answer says `Clear-Site-Data:
+ * "cache", "storage"` (gateway/page-headers.ts), but browsers honour it only in a secure context
+ * and only when the answer arrives: the page clears its own storage too (the forms' unsaved
+ * drafts of machine settings live in localStorage: src/forms/storage.ts), so nothing of the
+ * signed-out person's work is left for the next one on a shared tablet, over plain HTTP on the
+ * shop network or with the gateway unreachable. Machine answers are never cached (no-store; the
+ * service worker caches only the app shell). The callers then load `/login` afresh, which also
+ * drops everything held in memory. The same when the gateway says the session expired (idle
+ * timeout): the next person must not find the last one's drafts.
+ */
+export function forgetLocalData(
+  g: { localStorage?: Pick<Storage, 'clear'>; sessionStorage?: Pick<Storage, 'clear'> } = globalThis,
+): void {
+  for (const read of [() => g.localStorage, () => g.sessionStorage]) {
+    try {
+      read()?.clear();
+    } catch {
+      // storage disabled (private mode, policy): nothing kept there either
+    }
+  }
 }
 
 export async function logout(): Promise<void> {
   await post('/api/logout').catch(() => undefined);
+  forgetLocalData();
   authStore.setState({ user: null });
   sessionExtra.setState({ elevation: null, idleTimeoutS: null, expired: false });
 }

@@ -9,7 +9,9 @@ import type { VitePWAOptions } from 'vite-plugin-pwa';
  *   page), the icons. Hashed assets need no revision; index.html gets one.
  * - Nothing else is cached: no runtime caching at all. `/api/…` (the gateway) and `/machines/…`
  *   (the controllers) always go to the network, and a navigation to them is never answered with
- *   the shell; so are `/healthz` and the CA download.
+ *   the shell; so are `/healthz` and the CA download and its page. Logout's `Clear-Site-Data:
+ *   "cache", "storage"` (gateway/page-headers.ts) unregisters this worker; the page's full load of
+ *   `/login` right after registers it again.
  * - `autoUpdate`: a new version installs and takes over at once (skipWaiting, clientsClaim);
  *   the page then reloads itself when nobody is using it (register.ts). A kiosk tablet has
  *   nobody to answer a prompt, and old code against a new gateway must not last.
@@ -20,7 +22,8 @@ export const NEVER_CACHED: RegExp[] = [
   /^\/api(?:[/?]|$)/,
   /^\/machines(?:[/?]|$)/,
   /^\/healthz(?:[/?]|$)/,
-  /^\/shopdeck-ca\.crt(?:[?]|$)/,
+  // the CA download and its page (server/server.ts: HTTPS only, from the server every time)
+  /^\/shopdeck-ca(?:\.crt)?(?:[?]|$)/,
 ];
 
 /** Colours from src/ui/theme.css (light side): the top bar (--panel) and the page (--bg). */
