@@ -1,6 +1,6 @@
 import { afterEach, beforeEach, describe, expect, it, vi } from 'vitest';
 import { authStore } from '../../fleet/auth';
-import { auditQuery, elevate, fetchSession, login, logout, sessionExtra, trackActivity } from './api';
+import { auditQuery, elevate, fetchSession, logout, sessionExtra, trackActivity } from './api';
 
 function json(body: unknown, status = 200): Response {
   return new Response(JSON.stringify(body), { status, headers: { 'Content-Type': 'application/json' } });
@@ -113,44 +113,6 @@ describe('auth api', () => {
       expect(authStore.getState().user).toBeNull();
       vi.unstubAllGlobals();
     }
-  });
-
-  it('a session that expired (idle timeout) and a new login clear this browser’s storage; a live session does not', async () => {
-    const kept = new Map<string, string>([['draft', '{"edits":1}']]);
-    const local = { clear: () => kept.clear() };
-    vi.stubGlobal('localStorage', local);
-    vi.stubGlobal('sessionStorage', { clear: () => undefined });
-    const sue = { name: 'sue', role: 'supervisor', machines: null };
-    vi.stubGlobal(
-      'fetch',
-      vi.fn<typeof fetch>(() => Promise.resolve(json({ mode: 'secured', user: sue, idleTimeoutS: 3600 }))),
-    );
-    await fetchSession();
-    expect(kept.size).toBe(1);
-    vi.stubGlobal(
-      'fetch',
-      vi.fn<typeof fetch>(() => Promise.resolve(json({ mode: 'secured', user: null, expired: true }))),
-    );
-    await fetchSession();
-    expect(kept.size).toBe(0);
-    expect(authStore.getState().user).toBeNull();
-
-    // A login starts clean too (what is left is from a session that ended without a logout);
-    // a refused login clears nothing.
-    kept.set('draft', '{"edits":2}');
-    vi.stubGlobal(
-      'fetch',
-      vi.fn<typeof fetch>(() => Promise.resolve(json({ error: 'Wrong name or password.' }, 401))),
-    );
-    await expect(login('sue', 'wrong')).rejects.toThrow('Wrong name or password.');
-    expect(kept.size).toBe(1);
-    vi.stubGlobal(
-      'fetch',
-      vi.fn<typeof fetch>(() => Promise.resolve(json({ mode: 'secured', user: sue, idleTimeoutS: 3600 }))),
-    );
-    await login('sue', 'sue-password-1');
-    expect(kept.size).toBe(0);
-    expect(authStore.getState().user).toMatchObject({ name: 'sue' });
   });
 
   it('builds audit queries with ISO times', () => {

@@ -62,9 +62,6 @@ export class AuthError extends Error {
 let elevationTimer: ReturnType<typeof setTimeout> | null = null;
 
 function apply(s: SessionInfo): SessionInfo {
-  // The session ended by itself (idle timeout): as at sign-out, nothing of that person's work
-  // stays for whoever picks the tablet up next (forgetLocalData, below).
-  if (s.expired && !s.user) forgetLocalData();
   authStore.setState({ mode: s.mode, user: s.user, openOnNetwork: s.openOnNetwork === true });
   const until = s.elevation ? Date.parse(s.elevation.until) : NaN;
   sessionExtra.setState({
@@ -127,10 +124,6 @@ export async function login(name: string, password: string): Promise<SessionInfo
   if (r.status === 401) throw await errorOf(r, 'Wrong name or password.');
   if (r.status === 429) throw await errorOf(r, 'Too many failed logins: wait and try again.');
   if (!r.ok) throw await errorOf(r, `Login failed (HTTP ${r.status}).`);
-  // Drafts belong to the session they were made in: whatever is left from before this login
-  // (a session that ended without a logout, e.g. the browser closed: its cookie went with it)
-  // is someone else's.
-  forgetLocalData();
   return sessionFrom(r);
 }
 
@@ -142,8 +135,7 @@ export async function login(name: string, password: string): Promise<SessionInfo
  * signed-out person's work is left for the next one on a shared tablet, over plain HTTP on the
  * shop network or with the gateway unreachable. Machine answers are never cached (no-store; the
  * service worker caches only the app shell). The callers then load `/login` afresh, which also
- * drops everything held in memory. The same when the gateway says the session expired (idle
- * timeout): the next person must not find the last one's drafts.
+ * drops everything held in memory.
  */
 export function forgetLocalData(
   g: { localStorage?: Pick<Storage, 'clear'>; sessionStorage?: Pick<Storage, 'clear'> } = globalThis,
