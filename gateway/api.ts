@@ -120,7 +120,7 @@ export function createApi(ctx: GatewayContext, stores: ApiStores = createAlarmSt
   const simApi = createSimApi(ctx);
   /** Where each user logged in from: the per-user backstop spares those addresses. */
   const logins = new LoginHistory(now);
-  /** PIN locks already written to the audit log (name → when), one entry per lock. */
+  /** PIN locks already written to the audit log (limiter key → when), one entry per lock. */
   const locksNoted = new Map<string, number>();
 
   /**
@@ -137,25 +137,76 @@ export function createApi(ctx: GatewayContext, stores: ApiStores = createAlarmSt
     return keys;
   }
 
-  /** A PIN attempt counts per supervisor, from any address (the PIN locks), and per address. */
-  function pinKeys(name: string, address: string): LimitKey[] {
-    return [
-      { key: `pin:${name}`, limit: limits.perPin },
+  /** The tablets (operator, address) each supervisor's PIN unlocked: the per-PIN backstop spares them. */
+  const unlocks = new LoginHistory(now);
+  const tabletOf = (operator: string, address: string): string => JSON.stringify([operator, address]);
+
+  /**
+   * A wrong PIN counts against whoever tried it: the tablet (the operator's session at its
+   * address: 5, then that tablet may try no more), the operator account from any address, and the
+   * address. Per supervisor only as a backstop against guessing one PIN from many operators or
+   * addresses, and only on tablets that supervisor never unlocked: an operator's wrong PINs
+   * never stop the supervisor's PIN on another tablet, nor the supervisor's password.
+   */
+  function pinKeys(name: string, operator: string, address: string): LimitKey[] {
+    const keys: LimitKey[] = [
+      { key: `pin-tablet:${tabletOf(operator, address)}`, limit: limits.perPin },
+      { key: `pin-op:${operator}`, limit: limits.perPinOperator },
       { key: `addr:${address}`, limit: limits.perAddress },
     ];
+    if (!unlocks.knows(name, tabletOf(operator, address)))
+      keys.push({ key: `pin:${name}`, limit: limits.perPinTotal });
+    return keys;
   }
 
-  /** After a wrong PIN: " the PIN of X is now locked …" the first time X's PIN reaches its limit. */
-  function pinLockNote(name: string): string {
-    const key: LimitKey = { key: `pin:${name}`, limit: limits.perPin };
-    if (limiter.count(key) < key.limit) return '';
+  /** The refusal (audit, answer) when `key` of `pinKeys` is at its limit. */
+  function pinRefusal(key: string, name: string, operator: string, retryAfterS: number): [string, string] {
+    if (key.startsWith('pin-tablet:'))
+      return [
+        `this tablet (${operator} at this address) is locked: too many wrong PINs`,
+        `too many wrong PINs on this tablet: try again in ${retryAfterS} s`,
+      ];
+    if (key.startsWith('pin-op:'))
+      return [
+        `${operator} is locked from PIN unlocks: too many wrong PINs`,
+        `too many wrong PINs by ${operator}: try again in ${retryAfterS} s`,
+      ];
+    if (key.startsWith('pin:'))
+      return [
+        `the PIN of ${name} is locked on tablets ${name} never unlocked: too many wrong PINs from anywhere`,
+        `too many wrong PINs for ${name}: on this tablet the PIN is locked, try again in ${retryAfterS} s`,
+      ];
+    return ['too many failed PINs', `too many failed PINs: try again in ${retryAfterS} s`];
+  }
+
+  /** After a wrong PIN: what became locked by it, the first time each lock happens (the audit). */
+  function pinLockNote(name: string, operator: string, address: string): string {
     const t = now();
-    const noted = locksNoted.get(name);
-    if (noted !== undefined && t - noted < limits.windowMs) return '';
-    if (locksNoted.size > 1000)
-      for (const [k, at] of locksNoted) if (t - at >= limits.windowMs) locksNoted.delete(k);
-    locksNoted.set(name, t);
-    return `; the PIN of ${name} is locked for up to ${Math.round(limits.windowMs / 60_000)} min after ${key.limit} wrong PINs from any address (the password still works)`;
+    const notes: string[] = [];
+    const locks: Array<[LimitKey, string]> = [
+      [
+        { key: `pin-tablet:${tabletOf(operator, address)}`, limit: limits.perPin },
+        `this tablet (${operator} at ${address}) may try no PIN for up to ${Math.round(limits.windowMs / 60_000)} min after ${limits.perPin} wrong PINs (other tablets and the supervisors' PINs are not affected)`,
+      ],
+      [
+        { key: `pin-op:${operator}`, limit: limits.perPinOperator },
+        `${operator} may try no PIN for up to ${Math.round(limits.windowMs / 60_000)} min after ${limits.perPinOperator} wrong PINs from any address`,
+      ],
+      [
+        { key: `pin:${name}`, limit: limits.perPinTotal },
+        `the PIN of ${name} is refused for up to ${Math.round(limits.windowMs / 60_000)} min on tablets ${name} never unlocked, after ${limits.perPinTotal} wrong PINs from anywhere (tablets ${name} unlocked before and the password still work)`,
+      ],
+    ];
+    for (const [key, note] of locks) {
+      if (limiter.count(key) < key.limit) continue;
+      const noted = locksNoted.get(key.key);
+      if (noted !== undefined && t - noted < limits.windowMs) continue;
+      if (locksNoted.size > 1000)
+        for (const [k, at] of locksNoted) if (t - at >= limits.windowMs) locksNoted.delete(k);
+      locksNoted.set(key.key, t);
+      notes.push(note);
+    }
+    return notes.map((n) => `; ${n}`).join('');
   }
 
   // ---------------------------------------------------------------- /api
@@ -293,9 +344,9 @@ export function createApi(ctx: GatewayContext, stores: ApiStores = createAlarmSt
         }
         const { name, pin } = body.data;
         // Counted BEFORE the slow comparison: concurrent guesses cannot all pass the check.
-        const slot = limiter.reserve(pinKeys(name, address));
+        const slot = limiter.reserve(pinKeys(name, onBehalfOf, address));
         if (!slot.ok) {
-          const locked = slot.key === `pin:${name}`;
+          const [error, answer] = pinRefusal(slot.key, name, onBehalfOf, slot.retryAfterS);
           record({
             type: 'elevate-failed',
             result: 'refused',
@@ -303,15 +354,9 @@ export function createApi(ctx: GatewayContext, stores: ApiStores = createAlarmSt
             onBehalfOf,
             source: 'gateway',
             address,
-            error: locked ? `the PIN of ${name} is locked: too many wrong PINs` : 'too many failed PINs',
+            error,
           });
-          tooMany(
-            res,
-            locked
-              ? `too many wrong PINs for ${name}: the PIN is locked, try again in ${slot.retryAfterS} s`
-              : `too many failed PINs: try again in ${slot.retryAfterS} s`,
-            slot.retryAfterS,
-          );
+          tooMany(res, answer, slot.retryAfterS);
           return;
         }
         const fail = (error: string, answer: string): void => {
@@ -322,7 +367,7 @@ export function createApi(ctx: GatewayContext, stores: ApiStores = createAlarmSt
             onBehalfOf,
             source: 'gateway',
             address,
-            error: error + pinLockNote(name),
+            error: error + pinLockNote(name, onBehalfOf, address),
           });
           sendJson(res, 401, { error: answer });
         };
@@ -342,6 +387,7 @@ export function createApi(ctx: GatewayContext, stores: ApiStores = createAlarmSt
           return;
         }
         slot.release();
+        unlocks.remember(sup.name, tabletOf(onBehalfOf, address));
         w.session.elevation = { supervisor: sup.name, until: now() + elevationMs };
         record({
           type: 'elevate',
