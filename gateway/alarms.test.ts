@@ -106,21 +106,21 @@ describe('the alarm centre', () => {
     expect(centre.get(first)).toMatchObject({ ackBy: 'olga', clearedAt: clock.t });
   });
 
-  it('an acknowledgement by key before the watch saw the alarm marks the record it opens', () => {
-    const { centre, clock } = setup();
-    expect(centre.acknowledgeKey('laser-1', 'xtool-flame', 'olga')).toBe('early');
+  it('nothing is acknowledged in advance: a key without an open record is refused and not kept', () => {
+    const { centre, clock, events } = setup();
+    expect(centre.acknowledgeKey('laser-1', 'xtool-flame', 'olga')).toBeNull();
+    expect(centre.acknowledgeKey('laser-1', 'invented-key', 'olga')).toBeNull();
     clock.t += 2000;
     centre.observe(laser, sum('running', []), sum('alarm', [FLAME]));
-    expect(centre.query({ machines: null })[0]).toMatchObject({ ackBy: 'olga' });
-    // Not for long: a flame 11 s later is a new alarm for a person to see.
+    const [r] = centre.query({ machines: null });
+    expect(r).toMatchObject({ key: 'xtool-flame', ackBy: null, ackAt: null });
+    // The open record is acknowledged by its key once it exists.
+    expect(centre.acknowledgeKey('laser-1', 'xtool-flame', 'olga')).toMatchObject({ ackBy: 'olga' });
+    expect(centre.acknowledgeKey('laser-1', 'xtool-flame', 'sam')).toBe('already');
+    // A cleared record is not open: its key acknowledges nothing.
     centre.observe(laser, sum('alarm', [FLAME]), sum('idle', []));
-    centre.acknowledgeKey('laser-1', 'xtool-tilt', 'olga');
-    clock.t += 11_000;
-    centre.observe(laser, sum('idle', []), sum('alarm', [TILT]));
-    expect(centre.query({ machines: null, state: 'active' })[0]).toMatchObject({
-      key: 'xtool-tilt',
-      ackBy: null,
-    });
+    expect(centre.acknowledgeKey('laser-1', 'xtool-flame', 'olga')).toBeNull();
+    expect(events.filter((e) => e[0] === 'alarm.acknowledged')).toHaveLength(1);
   });
 
   it('a machine that goes offline during a job is an alarm; it clears when the machine answers again', () => {

@@ -53,8 +53,6 @@ export interface AlarmCentreOptions {
 }
 
 export const OFFLINE_KEY = 'offline-during-job';
-/** An acknowledgement given before the watch saw the alarm (a page saw it first) waits this long. */
-const EARLY_ACK_MS = 10_000;
 const MAX_TEXT = 500;
 
 const fileSchema = z.object({
@@ -84,7 +82,6 @@ export class AlarmCentre {
   version = 0;
   private readonly file: string | null;
   private readonly now: () => number;
-  private readonly earlyAcks = new Map<string, { by: string; at: number }>();
   private writeTimer: ReturnType<typeof setTimeout> | null = null;
   private writing: Promise<void> = Promise.resolve();
 
@@ -188,12 +185,6 @@ export class AlarmCentre {
       ackBy: null,
       ackAt: null,
     };
-    const early = this.earlyAcks.get(`${m.id}\n${a.key}`);
-    if (early && t - early.at <= EARLY_ACK_MS) {
-      r.ackBy = early.by;
-      r.ackAt = early.at;
-      this.earlyAcks.delete(`${m.id}\n${a.key}`);
-    }
     this.records.push(r);
     // The log line and the audit entry are the watch's (gateway.ts): one each, not two.
     this.opts.onChange?.('alarm.raised', r);
@@ -224,21 +215,18 @@ export class AlarmCentre {
   }
 
   /**
-   * Acknowledges a machine's alarm by its key (a page acknowledged an alarm it saw itself): the
-   * latest unacknowledged record of that key; when the watch has not seen it yet, the record it
-   * opens within 10 s is born acknowledged.
+   * Acknowledges a machine's alarm by its key: the open record of that key (an alarm the watch
+   * has seen and recorded). Nothing is acknowledged in advance: with no open record of that key,
+   * null (the caller answers 404), and nothing is kept.
    */
-  acknowledgeKey(machine: string, key: string, by: string): AlarmRecord | 'early' {
-    const r = [...this.records]
-      .reverse()
-      .find((x) => x.machine === machine && x.key === key && x.ackAt === null);
-    if (r) {
-      const out = this.acknowledge(r.id, by);
-      if (out !== null && out !== 'already') return out;
-    }
-    if (this.earlyAcks.size > 1000) this.earlyAcks.clear();
-    this.earlyAcks.set(`${machine}\n${key}`, { by: by.slice(0, 200), at: this.now() });
-    return 'early';
+  acknowledgeKey(machine: string, key: string, by: string): AlarmRecord | 'already' | null {
+    const r = this.openRecord(machine, key);
+    return r ? this.acknowledge(r.id, by) : null;
+  }
+
+  /** The open record of a machine's alarm key, if any. */
+  open(machine: string, key: string): AlarmRecord | undefined {
+    return this.openRecord(machine, key);
   }
 
   get(id: string): AlarmRecord | undefined {

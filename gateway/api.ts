@@ -522,9 +522,11 @@ export function createApi(ctx: GatewayContext, stores: ApiStores = createAlarmSt
           return;
         }
         const b = body.data;
-        const target = 'id' in b ? alarms.get(b.id) : undefined;
-        const machineId = 'id' in b ? target?.machine : b.machine;
-        if (!machineId || !mayUseMachine(pr, machineId) || ('machine' in b && !byId.has(b.machine))) {
+        // Only a record the alarm centre has: by id, or the open record of a machine's key. Never
+        // in advance (an alarm that has not happened), never an invented key: 404, nothing kept.
+        const target = 'id' in b ? alarms.get(b.id) : alarms.open(b.machine, b.key);
+        const machineId = target?.machine;
+        if (!target || !machineId || !mayUseMachine(pr, machineId)) {
           sendJson(res, 404, { error: 'no such alarm' });
           return;
         }
@@ -544,12 +546,12 @@ export function createApi(ctx: GatewayContext, stores: ApiStores = createAlarmSt
           return;
         }
         const by = pr.onBehalfOf ? `${pr.name} (on ${pr.onBehalfOf}'s tablet)` : pr.name;
-        const out = 'id' in b ? alarms.acknowledge(b.id, by) : alarms.acknowledgeKey(b.machine, b.key, by);
-        if (out === 'already') {
+        const out = alarms.acknowledge(target.id, by);
+        if (out === 'already' || out === null) {
           sendJson(res, 200, { alarm: target, already: true });
           return;
         }
-        const r = out === 'early' || out === null ? null : out;
+        const r = out;
         record({
           type: 'alarm-ack',
           result: 'ok',
@@ -558,9 +560,9 @@ export function createApi(ctx: GatewayContext, stores: ApiStores = createAlarmSt
           source: 'gateway',
           machine: machineId,
           address,
-          detail: `acknowledged: ${r ? r.text : 'key' in b ? b.key : ''}`.slice(0, 500),
+          detail: `acknowledged: ${r.text}`.slice(0, 500),
         });
-        sendJson(res, 200, { alarm: r, early: out === 'early' });
+        sendJson(res, 200, { alarm: r });
         return;
       }
       case 'GET /api/settings': {

@@ -309,6 +309,35 @@ describe('the alarm centre, with no page open', () => {
     expect(still?.ackBy).toBeNull();
   });
 
+  it('an alarm cannot be acknowledged before it happens, nor by an invented key (finding 3)', async () => {
+    const { gw, flame } = await setup();
+    const otto = await login(gw.url, 'otto', 'otto-pass-1');
+    const vera = await login(gw.url, 'vera', 'vera-pass-1');
+    // The pen test's attack: the flame's real key, before any flame, then invented keys.
+    const early = await ack(gw.url, otto, { machine: 'x1', key: 'xtool-flame' });
+    expect(early.status).toBe(404);
+    expect(await early.json()).not.toHaveProperty('early');
+    for (let i = 0; i < 50; i++)
+      expect((await ack(gw.url, otto, { machine: 'x1', key: `invented-${i}` })).status).toBe(404);
+    expect(gw.gw.audit.all().filter((e) => e.type === 'alarm-ack')).toEqual([]);
+    // The flame that follows at once is unacknowledged, in every list (another person's screen,
+    // one opened afterwards).
+    flame();
+    let listed: Listed = { version: 0, alarms: [] };
+    await until('the flame in the alarm list', async () => {
+      listed = await list(gw.url, vera, '?state=unacknowledged');
+      return listed.alarms.some((a) => a.key === 'xtool-flame');
+    });
+    expect(listed.alarms.find((a) => a.key === 'xtool-flame')).toMatchObject({ machine: 'x1', ackBy: null });
+    const later = await login(gw.url, 'vera', 'vera-pass-1');
+    const fresh = await list(gw.url, later);
+    expect(fresh.alarms.find((a) => a.key === 'xtool-flame')?.ackBy).toBeNull();
+    // Now that the record exists, its key acknowledges it.
+    const ok = await ack(gw.url, otto, { machine: 'x1', key: 'xtool-flame' });
+    expect(ok.status).toBe(200);
+    expect((await list(gw.url, vera)).alarms.find((a) => a.key === 'xtool-flame')?.ackBy).toBe('otto');
+  });
+
   it('the webhook URL is a supervisor’s setting; its secret part is never shown', async () => {
     const { gw } = await setup();
     const sam = await login(gw.url, 'sam', 'sam-pass-1');
