@@ -353,9 +353,19 @@ export function createAlarmStores(o: {
   env: NodeJS.ProcessEnv;
   log: Logger;
   now: () => number;
+  /** The machines file: the webhook never reaches a machine's host. */
+  config?: { machines: ReadonlyArray<{ url: URL | null; wsUrl: URL | null }> };
 }): { alarms: AlarmCentre; settings: SettingsStore; webhook: Webhook } {
   const settings = new SettingsStore(o.dataDir, o.env, o.log);
-  const webhook = new Webhook({ url: () => settings.webhookUrl(), log: o.log });
+  const webhook = new Webhook({
+    url: () => settings.webhookUrl(),
+    log: o.log,
+    allowedHosts: () => settings.webhookAllowHosts(),
+    machineHosts: () =>
+      (o.config?.machines ?? []).flatMap(
+        (m) => [m.url?.hostname, m.wsUrl?.hostname].filter((h) => !!h) as string[],
+      ),
+  });
   const alarms = new AlarmCentre({
     dataDir: o.dataDir,
     log: o.log,

@@ -650,7 +650,9 @@ export function createApi(ctx: GatewayContext, stores: ApiStores = createAlarmSt
             ackAt: null,
           }),
         );
-        sendJson(res, 200, result);
+        // Only whether it was delivered: the reason (refused, not HTTP, the receiver's status)
+        // would make this a port scanner of the shop network. The server's log says why.
+        sendJson(res, 200, result.ok ? { ok: true, result: 'delivered' } : { ok: false, result: 'failed' });
         return;
       }
       case 'GET /api/tls': {
