@@ -6,6 +6,8 @@ import type { FamilyDescriptor } from '../src/fleet/contract';
 import type { Simulator, SimControl } from '../src/fleet/sim';
 import http from 'node:http';
 import type { AddressInfo } from 'node:net';
+import { AlarmCentre } from './alarms';
+import { createLogger, type Logger } from './log';
 import { consoleFetch, login, startGateway, tempDir, user, writeJson } from './test-util';
 
 /**
@@ -111,7 +113,7 @@ async function receiver(): Promise<{ url: string; got: unknown[]; close(): Promi
 }
 
 describe('the alarm centre, with no page open', () => {
-  async function setup() {
+  async function setup(o: { log?: Logger; dir?: string } = {}) {
     const sims = new Map<string, Simulator>();
     const sharing = xtoolFamily.gateway?.sharing;
     const watch = sharing?.watch;
@@ -125,7 +127,7 @@ describe('the alarm centre, with no page open', () => {
         return sim;
       },
     };
-    const t = tempDir();
+    const t = o.dir ? { dir: o.dir, cleanup: () => undefined } : tempDir();
     cleanups.push(t.cleanup);
     const hook = await receiver();
     cleanups.push(hook.close);
@@ -161,6 +163,7 @@ describe('the alarm centre, with no page open', () => {
       usersFile,
       env: { SHOPDECK_ALARM_WEBHOOK: hook.url },
       watch: true,
+      ...(o.log ? { log: o.log } : {}),
     });
     cleanups.push(gw.close);
     await until('the watch holds the laser’s socket', () => gw.gw.streamStats('x1').open === 1);
@@ -339,6 +342,33 @@ describe('the alarm centre, with no page open', () => {
     const ok = await ack(gw.url, otto, { id });
     expect(ok.status).toBe(200);
     expect((await list(gw.url, vera)).alarms.find((a) => a.key === 'xtool-flame')?.ackBy).toBe('otto');
+  });
+
+  it('the flame is on disk before the log, the audit log or the webhook hear of it (finding 15)', async () => {
+    const t = tempDir();
+    cleanups.push(t.cleanup);
+    const silent = createLogger({ write: () => undefined });
+    /** What a restart would find at this moment: the alarm centre read again from the folder. */
+    const onDiskNow = (): string[] =>
+      new AlarmCentre({ dataDir: t.dir, log: silent }).query({ machines: null }).map((r) => r.key);
+    const whenLogged: string[][] = [];
+    const log = createLogger({
+      write: (line) => {
+        if (/x1: alarm \(/.test(line)) whenLogged.push(onDiskNow());
+      },
+    });
+    const { hook, flame } = await setup({ log, dir: t.dir });
+    // (The watch's audit entry is written in the same step as its log line, right after it.)
+    const whenHooked: string[][] = [];
+    const got = hook.got.length;
+    flame();
+    await until('the webhook received the flame', () => {
+      if (hook.got.length > got && whenHooked.length === 0) whenHooked.push(onDiskNow());
+      return whenHooked.length > 0;
+    });
+    await until('the log line', () => whenLogged.length > 0);
+    expect(whenLogged[0]).toContain('xtool-flame');
+    expect(whenHooked[0]).toContain('xtool-flame');
   });
 
   it('the webhook URL is a supervisor’s setting; its secret part is never shown', async () => {
