@@ -152,7 +152,8 @@ export function createApi(ctx: GatewayContext, stores: ApiStores = createAlarmSt
     const keys: LimitKey[] = [
       { key: `pin-tablet:${tabletOf(operator, address)}`, limit: limits.perPin },
       { key: `pin-op:${operator}`, limit: limits.perPinOperator },
-      { key: `addr:${address}`, limit: limits.perAddress },
+      // Its own counter: wrong PINs never lock the logins from that address.
+      { key: `pin-addr:${address}`, limit: limits.perAddress },
     ];
     if (!unlocks.knows(name, tabletOf(operator, address)))
       keys.push({ key: `pin:${name}`, limit: limits.perPinTotal });

@@ -302,6 +302,16 @@ describe('2. wrong PINs lock the tablet that tried them, not the supervisor’s 
     expect((await elevate(s, again, 'sam', PIN.sam, '127.0.0.10')).status).toBe(200);
   });
 
+  it('wrong PINs do not lock the logins from the tablet’s address', async () => {
+    // The per-address limit as low as the per-tablet one: a shared counter would lock the logins.
+    const s = await setup({ rateLimit: { perAddress: 5 } });
+    const otto = await sessionOf(s, 'otto', '127.0.0.30');
+    for (let i = 0; i < 5; i++) await elevate(s, otto, 'sam', String(500000 + i), '127.0.0.30');
+    for (let i = 0; i < 5; i++) await elevate(s, otto, 'sue', String(600000 + i), '127.0.0.30');
+    // Sam logs in on that tablet with the password.
+    expect((await loginAs(s, 'sam', PW.sam, '127.0.0.30')).status).toBe(200);
+  });
+
   it('an operator moving between addresses is limited per account', async () => {
     const s = await setup({ rateLimit: { perAddress: 100 } });
     const otto = await sessionOf(s, 'otto');

@@ -1,4 +1,4 @@
-import { mkdirSync, readFileSync, renameSync, writeFileSync } from 'node:fs';
+import { closeSync, fsyncSync, mkdirSync, openSync, readFileSync, renameSync, writeSync } from 'node:fs';
 import { join } from 'node:path';
 import { z } from 'zod';
 import type { Logger } from './log';
@@ -164,7 +164,14 @@ export class SettingsStore {
   private save(next: ServerSettings): string | null {
     try {
       mkdirSync(join(this.file, '..'), { recursive: true });
-      writeFileSync(`${this.file}.tmp`, JSON.stringify(next, null, 2), { mode: 0o600 });
+      // On disk (fsynced) before the change is answered and audited.
+      const fd = openSync(`${this.file}.tmp`, 'w', 0o600);
+      try {
+        writeSync(fd, JSON.stringify(next, null, 2));
+        fsyncSync(fd);
+      } finally {
+        closeSync(fd);
+      }
       renameSync(`${this.file}.tmp`, this.file);
     } catch (e) {
       return `cannot save the settings: ${String(e)}`;
