@@ -1,5 +1,7 @@
-import { existsSync, readdirSync, readFileSync, writeFileSync } from 'node:fs';
+import { spawn } from 'node:child_process';
+import { appendFileSync, existsSync, readdirSync, readFileSync, writeFileSync } from 'node:fs';
 import path from 'node:path';
+import { pathToFileURL } from 'node:url';
 import { afterEach, describe, expect, it } from 'vitest';
 import type { WatchSummary } from '../src/fleet/contract';
 import { AlarmCentre, OFFLINE_KEY, type AlarmEvent, type AlarmRecord } from './alarms';
@@ -106,21 +108,21 @@ describe('the alarm centre', () => {
     expect(centre.get(first)).toMatchObject({ ackBy: 'olga', clearedAt: clock.t });
   });
 
-  it('an acknowledgement by key before the watch saw the alarm marks the record it opens', () => {
-    const { centre, clock } = setup();
-    expect(centre.acknowledgeKey('laser-1', 'xtool-flame', 'olga')).toBe('early');
+  it('nothing is acknowledged in advance: a key without an open record is refused and not kept', () => {
+    const { centre, clock, events } = setup();
+    expect(centre.acknowledgeKey('laser-1', 'xtool-flame', 'olga')).toBeNull();
+    expect(centre.acknowledgeKey('laser-1', 'invented-key', 'olga')).toBeNull();
     clock.t += 2000;
     centre.observe(laser, sum('running', []), sum('alarm', [FLAME]));
-    expect(centre.query({ machines: null })[0]).toMatchObject({ ackBy: 'olga' });
-    // Not for long: a flame 11 s later is a new alarm for a person to see.
+    const [r] = centre.query({ machines: null });
+    expect(r).toMatchObject({ key: 'xtool-flame', ackBy: null, ackAt: null });
+    // The open record is acknowledged by its key once it exists.
+    expect(centre.acknowledgeKey('laser-1', 'xtool-flame', 'olga')).toMatchObject({ ackBy: 'olga' });
+    expect(centre.acknowledgeKey('laser-1', 'xtool-flame', 'sam')).toBe('already');
+    // A cleared record is not open: its key acknowledges nothing.
     centre.observe(laser, sum('alarm', [FLAME]), sum('idle', []));
-    centre.acknowledgeKey('laser-1', 'xtool-tilt', 'olga');
-    clock.t += 11_000;
-    centre.observe(laser, sum('idle', []), sum('alarm', [TILT]));
-    expect(centre.query({ machines: null, state: 'active' })[0]).toMatchObject({
-      key: 'xtool-tilt',
-      ackBy: null,
-    });
+    expect(centre.acknowledgeKey('laser-1', 'xtool-flame', 'olga')).toBeNull();
+    expect(events.filter((e) => e[0] === 'alarm.acknowledged')).toHaveLength(1);
   });
 
   it('a machine that goes offline during a job is an alarm; it clears when the machine answers again', () => {
@@ -235,4 +237,92 @@ describe('the alarm centre', () => {
     expect(existsSync(path.join(t.dir, 'alarms.json'))).toBe(true);
     expect(JSON.parse(readFileSync(path.join(t.dir, 'alarms.json'), 'utf8'))).toMatchObject({ version: 1 });
   });
+
+  it('a record is on disk when it is announced: raised, cleared, acknowledged (finding 15)', () => {
+    const t = tempDir();
+    cleanups.push(t.cleanup);
+    const onDisk: Array<[AlarmEvent, AlarmRecord | undefined]> = [];
+    const clock = { t: Date.parse('2026-11-25T03:00:00Z') };
+    const log = createLogger({ write: () => undefined });
+    const centre = new AlarmCentre({
+      dataDir: t.dir,
+      log,
+      now: () => clock.t,
+      // The announcement (the webhook, the audit): what would a restart right now find?
+      onChange: (e, r) => onDisk.push([e, new AlarmCentre({ dataDir: t.dir, log }).get(r.id)]),
+    });
+    centre.observe(laser, sum('running', []), sum('alarm', [FLAME]));
+    const id = centre.query({ machines: null })[0]?.id ?? '';
+    clock.t += 1000;
+    centre.acknowledge(id, 'olga');
+    clock.t += 1000;
+    centre.observe(laser, sum('alarm', [FLAME]), sum('idle', []));
+    expect(onDisk.map(([e, r]) => [e, r?.key, r?.ackBy ?? null, r?.clearedAt ?? null])).toEqual([
+      ['alarm.raised', 'xtool-flame', null, null],
+      ['alarm.acknowledged', 'xtool-flame', 'olga', null],
+      ['alarm.cleared', 'xtool-flame', 'olga', clock.t],
+    ]);
+    // No snapshot was written yet (its timer did not run): the journal holds it all.
+    expect(existsSync(path.join(t.dir, 'alarms.json'))).toBe(false);
+  });
+
+  it('the journal after a snapshot: only newer lines replay; a line cut short by a crash is skipped', async () => {
+    const t = tempDir();
+    cleanups.push(t.cleanup);
+    const a = setup(t.dir);
+    a.centre.observe(laser, sum('running', []), sum('alarm', [FLAME]));
+    await a.centre.close();
+    // The snapshot holds everything: the journal is empty.
+    expect(readFileSync(path.join(t.dir, 'alarms.journal'), 'utf8')).toBe('');
+    const b = setup(t.dir);
+    const id = b.centre.query({ machines: null })[0]?.id ?? '';
+    b.centre.acknowledge(id, 'olga');
+    b.centre.observe(cnc, sum('running', []), sum('alarm', [TILT]));
+    // Killed before its snapshot, in the middle of a journal line.
+    appendFileSync(path.join(t.dir, 'alarms.journal'), '{"v":99,"r":{"id":"7","mach');
+    const c = setup(t.dir);
+    expect(c.centre.query({ machines: null }).map((r) => [r.key, r.ackBy])).toEqual([
+      ['xtool-flame', 'olga'],
+      ['xtool-tilt', null],
+    ]);
+    expect(c.lines.join('\n')).toMatch(/recovered from the journal/);
+  });
+
+  it('a process killed with SIGKILL right after it announced a flame keeps the record (finding 15)', async () => {
+    const t = tempDir();
+    cleanups.push(t.cleanup);
+    const root = path.resolve(import.meta.dirname, '..');
+    const tsx = pathToFileURL(path.join(root, 'node_modules', 'tsx', 'dist', 'loader.mjs')).href;
+    const child = spawn(
+      process.execPath,
+      ['--import', tsx, path.join(import.meta.dirname, 'test-util-alarm-child.ts'), t.dir],
+      {
+        stdio: ['ignore', 'pipe', 'pipe'],
+        env: { ...process.env, TSX_TSCONFIG_PATH: path.join(root, 'tsconfig.json') },
+      },
+    );
+    const exited = new Promise<NodeJS.Signals | null>((r) => child.once('exit', (_c, sig) => r(sig)));
+    let err = '';
+    child.stderr.on('data', (d: Buffer) => (err += d.toString()));
+    const announced = await new Promise<string>((resolve, reject) => {
+      let out = '';
+      child.stdout.on('data', (d: Buffer) => {
+        out += d.toString();
+        const m = /announced (\S+)\n/.exec(out);
+        if (m?.[1]) resolve(m[1]);
+      });
+      void exited.then(() => reject(new Error(`the child exited before announcing: ${err}`)));
+    });
+    child.kill('SIGKILL');
+    expect(await exited).toBe('SIGKILL');
+    // Restarted: the record is there, unacknowledged and open.
+    const again = setup(t.dir);
+    expect(again.centre.get(announced)).toMatchObject({
+      machine: 'laser-1',
+      key: 'xtool-flame',
+      severity: 'critical',
+      clearedAt: null,
+      ackAt: null,
+    });
+  }, 30_000);
 });

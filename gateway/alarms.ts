@@ -1,5 +1,15 @@
-import { mkdirSync, readFileSync, renameSync, writeFileSync } from 'node:fs';
-import { rename, writeFile } from 'node:fs/promises';
+import {
+  closeSync,
+  fsyncSync,
+  mkdirSync,
+  openSync,
+  readFileSync,
+  renameSync,
+  truncateSync,
+  writeFileSync,
+  writeSync,
+} from 'node:fs';
+import { open, rename } from 'node:fs/promises';
 import { join } from 'node:path';
 import { z } from 'zod';
 import { alarmRecordSchema, type AlarmRecord } from '../src/fleet/alarm-record';
@@ -15,6 +25,15 @@ import { Webhook } from './webhook';
  * clears itself when the controller no longer reports it (and stays in the history), and is
  * acknowledged by a person (who, when). A machine that goes offline during a job is an alarm of
  * its own. Kept in `alarms.json` in the data folder (written atomically), bounded.
+ *
+ * Durable before announced: every change is appended to `alarms.journal` (one JSON line per
+ * record changed, written and fsynced synchronously) before anyone is told of it: the pages (the
+ * list is read from memory only after this synchronous step), the webhook and the audit (the
+ * `onChange` listener), the log and the audit's alarm line (the watch reports after it observes).
+ * A SIGKILL right after the announcement keeps the record. `alarms.json` is the snapshot (written
+ * to a temporary file, fsynced and renamed shortly after); it says which journal lines it holds
+ * (`journal`), later lines are replayed at start, and the journal is emptied once a snapshot
+ * holds all of it.
  */
 
 export type { AlarmRecord };
@@ -53,15 +72,16 @@ export interface AlarmCentreOptions {
 }
 
 export const OFFLINE_KEY = 'offline-during-job';
-/** An acknowledgement given before the watch saw the alarm (a page saw it first) waits this long. */
-const EARLY_ACK_MS = 10_000;
 const MAX_TEXT = 500;
 
 const fileSchema = z.object({
   version: z.literal(1),
   seq: z.number().int().nonnegative(),
+  /** The last journal line this snapshot holds (absent: none). */
+  journal: z.number().int().nonnegative().optional(),
   records: z.array(alarmRecordSchema),
 });
+const journalLineSchema = z.object({ v: z.number().int().positive(), r: alarmRecordSchema });
 
 /** Newest and most severe first: severity, then active before cleared, then newest. */
 export function compareAlarms(a: AlarmRecord, b: AlarmRecord): number {
@@ -83,18 +103,66 @@ export class AlarmCentre {
   /** Bumped on every change: a page that has this version has everything. */
   version = 0;
   private readonly file: string | null;
+  private readonly journalFile: string | null;
+  /** The last journal line written (every change of a record is one). */
+  private journalSeq = 0;
+  /** Records changed and events to announce since the last `commit()`. */
+  private readonly dirty = new Set<AlarmRecord>();
+  private readonly pending: Array<[AlarmEvent, AlarmRecord]> = [];
   private readonly now: () => number;
-  private readonly earlyAcks = new Map<string, { by: string; at: number }>();
   private writeTimer: ReturnType<typeof setTimeout> | null = null;
   private writing: Promise<void> = Promise.resolve();
 
   constructor(private readonly opts: AlarmCentreOptions) {
     this.file = opts.dataDir ? join(opts.dataDir, 'alarms.json') : null;
+    this.journalFile = opts.dataDir ? join(opts.dataDir, 'alarms.journal') : null;
     this.now = opts.now ?? Date.now;
     this.load();
   }
 
   private load(): void {
+    this.loadSnapshot();
+    this.replayJournal();
+  }
+
+  /** Journal lines after the snapshot: each the record as it was after a change (by id). */
+  private replayJournal(): void {
+    if (!this.journalFile) return;
+    let text: string;
+    try {
+      text = readFileSync(this.journalFile, 'utf8');
+    } catch {
+      return; // no journal
+    }
+    const after = this.journalSeq;
+    let replayed = 0;
+    for (const line of text.split('\n')) {
+      if (!line.trim()) continue;
+      let parsed: z.infer<typeof journalLineSchema> | null = null;
+      try {
+        const r = journalLineSchema.safeParse(JSON.parse(line));
+        if (r.success) parsed = r.data;
+      } catch {
+        parsed = null; // a line cut short by a crash: the ones before it stand
+      }
+      if (!parsed) continue;
+      this.journalSeq = Math.max(this.journalSeq, parsed.v);
+      if (parsed.v <= after) continue;
+      const rec = parsed.r;
+      const i = this.records.findIndex((x) => x.id === rec.id);
+      if (i >= 0) this.records[i] = rec;
+      else this.records.push(rec);
+      this.seq = Math.max(this.seq, Number(rec.id) || 0);
+      replayed++;
+    }
+    if (replayed > 0) {
+      this.opts.log.info('alarm records recovered from the journal', { count: replayed });
+      this.version++;
+      this.scheduleWrite();
+    }
+  }
+
+  private loadSnapshot(): void {
     if (!this.file) return;
     let text: string;
     try {
@@ -124,6 +192,7 @@ export class AlarmCentre {
     }
     this.records = parsed.records;
     this.seq = Math.max(parsed.seq, ...this.records.map((r) => Number(r.id) || 0));
+    this.journalSeq = parsed.journal ?? 0;
   }
 
   /** What the watch learnt about a machine: open, update and clear its records. */
@@ -156,6 +225,7 @@ export class AlarmCentre {
       changed = this.clear(m.id, (r) => r.key !== OFFLINE_KEY && !active.has(r.key), t) || changed;
     }
     if (changed) this.changed();
+    this.commit();
   }
 
   private openRecord(machine: string, key: string): AlarmRecord | undefined {
@@ -171,6 +241,7 @@ export class AlarmCentre {
       open.text = text;
       // Never quieter while it lasts: a critical alarm stays critical.
       if (SEVERITY_RANK[a.severity] > SEVERITY_RANK[open.severity]) open.severity = a.severity;
+      this.dirty.add(open);
       return true;
     }
     const t = this.now();
@@ -188,15 +259,11 @@ export class AlarmCentre {
       ackBy: null,
       ackAt: null,
     };
-    const early = this.earlyAcks.get(`${m.id}\n${a.key}`);
-    if (early && t - early.at <= EARLY_ACK_MS) {
-      r.ackBy = early.by;
-      r.ackAt = early.at;
-      this.earlyAcks.delete(`${m.id}\n${a.key}`);
-    }
     this.records.push(r);
-    // The log line and the audit entry are the watch's (gateway.ts): one each, not two.
-    this.opts.onChange?.('alarm.raised', r);
+    // The log line and the audit entry are the watch's (gateway.ts): one each, not two. Announced
+    // by `commit()`, once the record is in the journal.
+    this.dirty.add(r);
+    this.pending.push(['alarm.raised', r]);
     return true;
   }
 
@@ -206,7 +273,8 @@ export class AlarmCentre {
       if (r.machine !== machine || r.clearedAt !== null || !which(r)) continue;
       r.clearedAt = t;
       changed = true;
-      this.opts.onChange?.('alarm.cleared', r);
+      this.dirty.add(r);
+      this.pending.push(['alarm.cleared', r]);
     }
     return changed;
   }
@@ -218,27 +286,68 @@ export class AlarmCentre {
     if (r.ackAt !== null) return 'already';
     r.ackBy = by.slice(0, 200);
     r.ackAt = this.now();
-    this.opts.onChange?.('alarm.acknowledged', r);
+    this.dirty.add(r);
+    this.pending.push(['alarm.acknowledged', r]);
     this.changed();
+    this.commit();
     return r;
   }
 
   /**
-   * Acknowledges a machine's alarm by its key (a page acknowledged an alarm it saw itself): the
-   * latest unacknowledged record of that key; when the watch has not seen it yet, the record it
-   * opens within 10 s is born acknowledged.
+   * Makes the changes since the last commit durable (journal lines, written and fsynced, one
+   * fsync for all), then announces them (`onChange`: the webhook, the audit). Synchronous: no
+   * page can read a record before it is on disk. A journal that cannot be written is logged and
+   * the alarm announced anyway (never hidden).
    */
-  acknowledgeKey(machine: string, key: string, by: string): AlarmRecord | 'early' {
-    const r = [...this.records]
-      .reverse()
-      .find((x) => x.machine === machine && x.key === key && x.ackAt === null);
-    if (r) {
-      const out = this.acknowledge(r.id, by);
-      if (out !== null && out !== 'already') return out;
+  private commit(): void {
+    if (this.dirty.size > 0) {
+      const records = [...this.dirty];
+      this.dirty.clear();
+      this.appendJournal(records);
     }
-    if (this.earlyAcks.size > 1000) this.earlyAcks.clear();
-    this.earlyAcks.set(`${machine}\n${key}`, { by: by.slice(0, 200), at: this.now() });
-    return 'early';
+    const events = this.pending.splice(0);
+    for (const [event, r] of events) this.opts.onChange?.(event, r);
+  }
+
+  private appendJournal(records: AlarmRecord[]): void {
+    const file = this.journalFile;
+    if (!file) return;
+    const lines = records.map((r) => `${JSON.stringify({ v: ++this.journalSeq, r })}\n`).join('');
+    let fd: number | null = null;
+    try {
+      mkdirSync(join(file, '..'), { recursive: true });
+      fd = openSync(file, 'a', 0o600);
+      writeSync(fd, lines);
+      fsyncSync(fd);
+    } catch (e) {
+      this.opts.log.error('cannot write the alarm journal: an alarm may be lost if the server stops now', {
+        file,
+        error: String(e),
+      });
+    } finally {
+      if (fd !== null) closeSync(fd);
+    }
+    if (!this.journalDirSynced) {
+      // The journal's own directory entry, once: a new file survives a power cut too.
+      this.journalDirSynced = true;
+      syncDir(join(file, '..'));
+    }
+  }
+  private journalDirSynced = false;
+
+  /**
+   * Acknowledges a machine's alarm by its key: the open record of that key (an alarm the watch
+   * has seen and recorded). Nothing is acknowledged in advance: with no open record of that key,
+   * null (the caller answers 404), and nothing is kept.
+   */
+  acknowledgeKey(machine: string, key: string, by: string): AlarmRecord | 'already' | null {
+    const r = this.openRecord(machine, key);
+    return r ? this.acknowledge(r.id, by) : null;
+  }
+
+  /** The open record of a machine's alarm key, if any. */
+  open(machine: string, key: string): AlarmRecord | undefined {
+    return this.openRecord(machine, key);
   }
 
   get(id: string): AlarmRecord | undefined {
@@ -291,7 +400,17 @@ export class AlarmCentre {
   }
 
   private serialise(): string {
-    return JSON.stringify({ version: 1, seq: this.seq, records: this.records });
+    return JSON.stringify({ version: 1, seq: this.seq, journal: this.journalSeq, records: this.records });
+  }
+
+  /** After a snapshot holding journal line `upTo` is in place: the journal is emptied when it holds nothing newer. */
+  private journalCovered(upTo: number): void {
+    if (!this.journalFile || this.journalSeq !== upTo) return;
+    try {
+      truncateSync(this.journalFile, 0);
+    } catch {
+      /* no journal yet */
+    }
   }
 
   private scheduleWrite(): void {
@@ -303,15 +422,26 @@ export class AlarmCentre {
     this.writeTimer.unref?.();
   }
 
-  /** Written to a temporary file and renamed: a crash leaves the old list or the new one. */
+  /** Written to a temporary file, fsynced and renamed: a crash leaves the old list or the new one. */
   private async writeNow(): Promise<void> {
     const file = this.file;
     if (!file) return;
     const tmp = `${file}.tmp`;
     try {
       mkdirSync(join(file, '..'), { recursive: true });
-      await writeFile(tmp, this.serialise(), { mode: 0o600 });
+      // The list and the journal line it holds, taken together.
+      const text = this.serialise();
+      const upTo = this.journalSeq;
+      const fh = await open(tmp, 'w', 0o600);
+      try {
+        await fh.writeFile(text);
+        await fh.sync();
+      } finally {
+        await fh.close();
+      }
       await rename(tmp, file);
+      syncDir(join(file, '..'));
+      this.journalCovered(upTo);
     } catch (e) {
       this.opts.log.error('cannot write the alarm list', { file, error: String(e) });
     }
@@ -333,8 +463,23 @@ export class AlarmCentre {
     clearTimeout(this.writeTimer);
     this.writeTimer = null;
     const tmp = `${this.file}.tmp`;
+    const upTo = this.journalSeq;
     writeFileSync(tmp, this.serialise(), { mode: 0o600 });
     renameSync(tmp, this.file);
+    this.journalCovered(upTo);
+  }
+}
+
+/** fsync of a directory (its entries: a renamed or new file); not every platform allows it. */
+function syncDir(dir: string): void {
+  let fd: number | null = null;
+  try {
+    fd = openSync(dir, 'r');
+    fsyncSync(fd);
+  } catch {
+    /* Windows cannot open a directory: the rename is as durable as the platform makes it */
+  } finally {
+    if (fd !== null) closeSync(fd);
   }
 }
 
@@ -365,9 +510,19 @@ export function createAlarmStores(o: {
   env: NodeJS.ProcessEnv;
   log: Logger;
   now: () => number;
+  /** The machines file: the webhook never reaches a machine's host. */
+  config?: { machines: ReadonlyArray<{ url: URL | null; wsUrl: URL | null }> };
 }): { alarms: AlarmCentre; settings: SettingsStore; webhook: Webhook } {
   const settings = new SettingsStore(o.dataDir, o.env, o.log);
-  const webhook = new Webhook({ url: () => settings.webhookUrl(), log: o.log });
+  const webhook = new Webhook({
+    url: () => settings.webhookUrl(),
+    log: o.log,
+    allowedHosts: () => settings.webhookAllowHosts(),
+    machineHosts: () =>
+      (o.config?.machines ?? []).flatMap(
+        (m) => [m.url?.hostname, m.wsUrl?.hostname].filter((h) => !!h) as string[],
+      ),
+  });
   const alarms = new AlarmCentre({
     dataDir: o.dataDir,
     log: o.log,

@@ -121,7 +121,7 @@ export function createApi(ctx: GatewayContext, stores: ApiStores = createAlarmSt
   const simApi = createSimApi(ctx);
   /** Where each user logged in from: the per-user backstop spares those addresses. */
   const logins = new LoginHistory(now);
-  /** PIN locks already written to the audit log (name → when), one entry per lock. */
+  /** PIN locks already written to the audit log (limiter key → when), one entry per lock. */
   const locksNoted = new Map<string, number>();
 
   /**
@@ -138,25 +138,77 @@ export function createApi(ctx: GatewayContext, stores: ApiStores = createAlarmSt
     return keys;
   }
 
-  /** A PIN attempt counts per supervisor, from any address (the PIN locks), and per address. */
-  function pinKeys(name: string, address: string): LimitKey[] {
-    return [
-      { key: `pin:${name}`, limit: limits.perPin },
-      { key: `addr:${address}`, limit: limits.perAddress },
+  /** The tablets (operator, address) each supervisor's PIN unlocked: the per-PIN backstop spares them. */
+  const unlocks = new LoginHistory(now);
+  const tabletOf = (operator: string, address: string): string => JSON.stringify([operator, address]);
+
+  /**
+   * A wrong PIN counts against whoever tried it: the tablet (the operator's session at its
+   * address: 5, then that tablet may try no more), the operator account from any address, and the
+   * address. Per supervisor only as a backstop against guessing one PIN from many operators or
+   * addresses, and only on tablets that supervisor never unlocked: an operator's wrong PINs
+   * never stop the supervisor's PIN on another tablet, nor the supervisor's password.
+   */
+  function pinKeys(name: string, operator: string, address: string): LimitKey[] {
+    const keys: LimitKey[] = [
+      { key: `pin-tablet:${tabletOf(operator, address)}`, limit: limits.perPin },
+      { key: `pin-op:${operator}`, limit: limits.perPinOperator },
+      // Its own counter: wrong PINs never lock the logins from that address.
+      { key: `pin-addr:${address}`, limit: limits.perAddress },
     ];
+    if (!unlocks.knows(name, tabletOf(operator, address)))
+      keys.push({ key: `pin:${name}`, limit: limits.perPinTotal });
+    return keys;
   }
 
-  /** After a wrong PIN: " the PIN of X is now locked …" the first time X's PIN reaches its limit. */
-  function pinLockNote(name: string): string {
-    const key: LimitKey = { key: `pin:${name}`, limit: limits.perPin };
-    if (limiter.count(key) < key.limit) return '';
+  /** The refusal (audit, answer) when `key` of `pinKeys` is at its limit. */
+  function pinRefusal(key: string, name: string, operator: string, retryAfterS: number): [string, string] {
+    if (key.startsWith('pin-tablet:'))
+      return [
+        `this tablet (${operator} at this address) is locked: too many wrong PINs`,
+        `too many wrong PINs on this tablet: try again in ${retryAfterS} s`,
+      ];
+    if (key.startsWith('pin-op:'))
+      return [
+        `${operator} is locked from PIN unlocks: too many wrong PINs`,
+        `too many wrong PINs by ${operator}: try again in ${retryAfterS} s`,
+      ];
+    if (key.startsWith('pin:'))
+      return [
+        `the PIN of ${name} is locked on tablets ${name} never unlocked: too many wrong PINs from anywhere`,
+        `too many wrong PINs for ${name}: on this tablet the PIN is locked, try again in ${retryAfterS} s`,
+      ];
+    return ['too many failed PINs', `too many failed PINs: try again in ${retryAfterS} s`];
+  }
+
+  /** After a wrong PIN: what became locked by it, the first time each lock happens (the audit). */
+  function pinLockNote(name: string, operator: string, address: string): string {
     const t = now();
-    const noted = locksNoted.get(name);
-    if (noted !== undefined && t - noted < limits.windowMs) return '';
-    if (locksNoted.size > 1000)
-      for (const [k, at] of locksNoted) if (t - at >= limits.windowMs) locksNoted.delete(k);
-    locksNoted.set(name, t);
-    return `; the PIN of ${name} is locked for up to ${Math.round(limits.windowMs / 60_000)} min after ${key.limit} wrong PINs from any address (the password still works)`;
+    const notes: string[] = [];
+    const locks: Array<[LimitKey, string]> = [
+      [
+        { key: `pin-tablet:${tabletOf(operator, address)}`, limit: limits.perPin },
+        `this tablet (${operator} at ${address}) may try no PIN for up to ${Math.round(limits.windowMs / 60_000)} min after ${limits.perPin} wrong PINs (other tablets and the supervisors' PINs are not affected)`,
+      ],
+      [
+        { key: `pin-op:${operator}`, limit: limits.perPinOperator },
+        `${operator} may try no PIN for up to ${Math.round(limits.windowMs / 60_000)} min after ${limits.perPinOperator} wrong PINs from any address`,
+      ],
+      [
+        { key: `pin:${name}`, limit: limits.perPinTotal },
+        `the PIN of ${name} is refused for up to ${Math.round(limits.windowMs / 60_000)} min on tablets ${name} never unlocked, after ${limits.perPinTotal} wrong PINs from anywhere (tablets ${name} unlocked before and the password still work)`,
+      ],
+    ];
+    for (const [key, note] of locks) {
+      if (limiter.count(key) < key.limit) continue;
+      const noted = locksNoted.get(key.key);
+      if (noted !== undefined && t - noted < limits.windowMs) continue;
+      if (locksNoted.size > 1000)
+        for (const [k, at] of locksNoted) if (t - at >= limits.windowMs) locksNoted.delete(k);
+      locksNoted.set(key.key, t);
+      notes.push(note);
+    }
+    return notes.map((n) => `; ${n}`).join('');
   }
 
   // ---------------------------------------------------------------- /api
@@ -298,9 +350,9 @@ export function createApi(ctx: GatewayContext, stores: ApiStores = createAlarmSt
         }
         const { name, pin } = body.data;
         // Counted BEFORE the slow comparison: concurrent guesses cannot all pass the check.
-        const slot = limiter.reserve(pinKeys(name, address));
+        const slot = limiter.reserve(pinKeys(name, onBehalfOf, address));
         if (!slot.ok) {
-          const locked = slot.key === `pin:${name}`;
+          const [error, answer] = pinRefusal(slot.key, name, onBehalfOf, slot.retryAfterS);
           record({
             type: 'elevate-failed',
             result: 'refused',
@@ -308,15 +360,9 @@ export function createApi(ctx: GatewayContext, stores: ApiStores = createAlarmSt
             onBehalfOf,
             source: 'gateway',
             address,
-            error: locked ? `the PIN of ${name} is locked: too many wrong PINs` : 'too many failed PINs',
+            error,
           });
-          tooMany(
-            res,
-            locked
-              ? `too many wrong PINs for ${name}: the PIN is locked, try again in ${slot.retryAfterS} s`
-              : `too many failed PINs: try again in ${slot.retryAfterS} s`,
-            slot.retryAfterS,
-          );
+          tooMany(res, answer, slot.retryAfterS);
           return;
         }
         const fail = (error: string, answer: string): void => {
@@ -327,7 +373,7 @@ export function createApi(ctx: GatewayContext, stores: ApiStores = createAlarmSt
             onBehalfOf,
             source: 'gateway',
             address,
-            error: error + pinLockNote(name),
+            error: error + pinLockNote(name, onBehalfOf, address),
           });
           sendJson(res, 401, { error: answer });
         };
@@ -347,6 +393,7 @@ export function createApi(ctx: GatewayContext, stores: ApiStores = createAlarmSt
           return;
         }
         slot.release();
+        unlocks.remember(sup.name, tabletOf(onBehalfOf, address));
         w.session.elevation = { supervisor: sup.name, until: now() + elevationMs };
         record({
           type: 'elevate',
@@ -481,9 +528,11 @@ export function createApi(ctx: GatewayContext, stores: ApiStores = createAlarmSt
           return;
         }
         const b = body.data;
-        const target = 'id' in b ? alarms.get(b.id) : undefined;
-        const machineId = 'id' in b ? target?.machine : b.machine;
-        if (!machineId || !mayUseMachine(pr, machineId) || ('machine' in b && !byId.has(b.machine))) {
+        // Only a record the alarm centre has: by id, or the open record of a machine's key. Never
+        // in advance (an alarm that has not happened), never an invented key: 404, nothing kept.
+        const target = 'id' in b ? alarms.get(b.id) : alarms.open(b.machine, b.key);
+        const machineId = target?.machine;
+        if (!target || !machineId || !mayUseMachine(pr, machineId)) {
           sendJson(res, 404, { error: 'no such alarm' });
           return;
         }
@@ -503,12 +552,12 @@ export function createApi(ctx: GatewayContext, stores: ApiStores = createAlarmSt
           return;
         }
         const by = pr.onBehalfOf ? `${pr.name} (on ${pr.onBehalfOf}'s tablet)` : pr.name;
-        const out = 'id' in b ? alarms.acknowledge(b.id, by) : alarms.acknowledgeKey(b.machine, b.key, by);
-        if (out === 'already') {
+        const out = alarms.acknowledge(target.id, by);
+        if (out === 'already' || out === null) {
           sendJson(res, 200, { alarm: target, already: true });
           return;
         }
-        const r = out === 'early' || out === null ? null : out;
+        const r = out;
         record({
           type: 'alarm-ack',
           result: 'ok',
@@ -517,9 +566,9 @@ export function createApi(ctx: GatewayContext, stores: ApiStores = createAlarmSt
           source: 'gateway',
           machine: machineId,
           address,
-          detail: `acknowledged: ${r ? r.text : 'key' in b ? b.key : ''}`.slice(0, 500),
+          detail: `acknowledged: ${r.text}`.slice(0, 500),
         });
-        sendJson(res, 200, { alarm: r, early: out === 'early' });
+        sendJson(res, 200, { alarm: r });
         return;
       }
       case 'GET /api/settings': {
@@ -607,7 +656,9 @@ export function createApi(ctx: GatewayContext, stores: ApiStores = createAlarmSt
             ackAt: null,
           }),
         );
-        sendJson(res, 200, result);
+        // Only whether it was delivered: the reason (refused, not HTTP, the receiver's status)
+        // would make this a port scanner of the shop network. The server's log says why.
+        sendJson(res, 200, result.ok ? { ok: true, result: 'delivered' } : { ok: false, result: 'failed' });
         return;
       }
       case 'GET /api/tls': {

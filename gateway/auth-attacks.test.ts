@@ -26,6 +26,7 @@ afterEach(async () => {
 const PW = {
   vera: 'viewer-pass-1',
   otto: 'operator-pass-1',
+  olga: 'operator-pass-2',
   sam: 'supervisor-pass-1',
   sue: 'supervisor-pass-2',
   old: 'supervisor-pass-3',
@@ -36,6 +37,7 @@ function defaultUsers(): UserRecord[] {
   return [
     user('vera', 'viewer', PW.vera),
     user('otto', 'operator', PW.otto),
+    user('olga', 'operator', PW.olga),
     user('sam', 'supervisor', PW.sam, { pinHash: hashFast(PIN.sam) }),
     user('sue', 'supervisor', PW.sue, { pinHash: hashFast(PIN.sue) }),
     // A PIN set before PINs needed 6 digits.
@@ -43,7 +45,15 @@ function defaultUsers(): UserRecord[] {
   ];
 }
 
-const LIMITS = { windowMs: 15 * 60_000, perUser: 5, perAddress: 20, perPin: 5, perUserTotal: 50 };
+const LIMITS = {
+  windowMs: 15 * 60_000,
+  perUser: 5,
+  perAddress: 20,
+  perPin: 5,
+  perPinOperator: 10,
+  perPinTotal: 30,
+  perUserTotal: 50,
+};
 
 function machine(id: string, simulated: boolean): MachineEntry {
   return {
@@ -260,27 +270,80 @@ describe('1. guesses do not race the limiter', () => {
   });
 });
 
-describe('2. a supervisor PIN locks after a few failures, from anywhere', () => {
-  it('5 wrong PINs for sam from 5 addresses lock the PIN (audited); the password still works', async () => {
-    const s = await setup({ rateLimit: { perAddress: 100 } });
-    const op = await sessionOf(s, 'otto');
-    for (let i = 0; i < 5; i++) {
-      const r = await elevate(s, op, 'sam', String(111111 * (i + 1)), `127.0.0.${10 + i}`);
-      expect(r.status).toBe(401);
-    }
-    const locked = await elevate(s, op, 'sam', PIN.sam, '127.0.0.20');
+describe('2. wrong PINs lock the tablet that tried them, not the supervisor’s PIN for everyone', () => {
+  it('an operator’s five wrong PINs do not stop a supervisor’s PIN on another operator’s tablet', async () => {
+    // The attack of the pen test: from one tablet, five wrong PINs for every supervisor.
+    const s = await setup();
+    const otto = await sessionOf(s, 'otto', '127.0.0.10');
+    const olga = await sessionOf(s, 'olga', '127.0.0.11');
+    for (const sup of ['sam', 'sue'])
+      for (let i = 0; i < 5; i++) {
+        const r = await elevate(s, otto, sup, String(111111 * (i + 1)), '127.0.0.10');
+        expect(r.status === 401 || r.status === 429).toBe(true);
+      }
+    // Otto's tablet is locked, whichever the supervisor (the right PIN too).
+    const locked = await elevate(s, otto, 'sam', PIN.sam, '127.0.0.10');
     expect(locked.status).toBe(429);
     expect(Number(locked.headers['retry-after'])).toBeGreaterThan(0);
-    // Another supervisor's PIN is not affected, nor sam's password.
-    expect((await elevate(s, op, 'sue', PIN.sue, '127.0.0.21')).status).toBe(200);
-    expect((await loginAs(s, 'sam', PW.sam, '127.0.0.22')).status).toBe(200);
-    const lockEntry = s.audit().find((e) => e.type === 'elevate-failed' && /locked/i.test(e.error ?? ''));
-    expect(lockEntry).toMatchObject({ user: 'sam', onBehalfOf: 'otto' });
-    expect(lockEntry?.error).toMatch(/PIN of sam is locked/);
+    // Olga's tablet: both supervisors' PINs work, and their passwords.
+    expect((await elevate(s, olga, 'sam', PIN.sam, '127.0.0.11')).status).toBe(200);
+    expect((await elevate(s, olga, 'sue', PIN.sue, '127.0.0.11')).status).toBe(200);
+    expect((await loginAs(s, 'sam', PW.sam, '127.0.0.12')).status).toBe(200);
+    // Audited once, when it happened: the tablet, not a supervisor's PIN, is locked.
+    const notes = s
+      .audit()
+      .filter((e) => e.type === 'elevate-failed' && /may try no PIN/.test(e.error ?? ''));
+    expect(notes).toHaveLength(1);
+    expect(notes[0]).toMatchObject({ onBehalfOf: 'otto' });
+    expect(notes[0]?.error).toMatch(/this tablet \(otto at 127\.0\.0\.10\)/);
     // The lock ends with the window.
     s.clock.t += LIMITS.windowMs + 1000;
-    const op2 = await sessionOf(s, 'otto');
-    expect((await elevate(s, op2, 'sam', PIN.sam, '127.0.0.23')).status).toBe(200);
+    const again = await sessionOf(s, 'otto', '127.0.0.10');
+    expect((await elevate(s, again, 'sam', PIN.sam, '127.0.0.10')).status).toBe(200);
+  });
+
+  it('wrong PINs do not lock the logins from the tablet’s address', async () => {
+    // The per-address limit as low as the per-tablet one: a shared counter would lock the logins.
+    const s = await setup({ rateLimit: { perAddress: 5 } });
+    const otto = await sessionOf(s, 'otto', '127.0.0.30');
+    for (let i = 0; i < 5; i++) await elevate(s, otto, 'sam', String(500000 + i), '127.0.0.30');
+    for (let i = 0; i < 5; i++) await elevate(s, otto, 'sue', String(600000 + i), '127.0.0.30');
+    // Sam logs in on that tablet with the password.
+    expect((await loginAs(s, 'sam', PW.sam, '127.0.0.30')).status).toBe(200);
+  });
+
+  it('an operator moving between addresses is limited per account', async () => {
+    const s = await setup({ rateLimit: { perAddress: 100 } });
+    const otto = await sessionOf(s, 'otto');
+    for (let i = 0; i < LIMITS.perPinOperator; i++)
+      expect((await elevate(s, otto, 'sam', String(200000 + i), `127.0.1.${i + 1}`)).status).toBe(401);
+    expect((await elevate(s, otto, 'sam', PIN.sam, '127.0.1.200')).status).toBe(429);
+    const olga = await sessionOf(s, 'olga', '127.0.1.201');
+    expect((await elevate(s, olga, 'sam', PIN.sam, '127.0.1.201')).status).toBe(200);
+  });
+
+  it('one PIN guessed from many tablets is capped; tablets the supervisor unlocked before still work', async () => {
+    const s = await setup({ rateLimit: { perAddress: 1000, perPinOperator: 1000 } });
+    const olga = await sessionOf(s, 'olga', '127.0.2.1');
+    // Sam unlocked Olga's tablet once: that tablet is known to sam's PIN.
+    expect((await elevate(s, olga, 'sam', PIN.sam, '127.0.2.1')).status).toBe(200);
+    // A distributed guesser: 4 wrong PINs from each of many addresses (never the per-tablet 5).
+    const otto = await sessionOf(s, 'otto');
+    let guesses = 0;
+    for (let a = 10; guesses < LIMITS.perPinTotal; a++)
+      for (let i = 0; i < 4 && guesses < LIMITS.perPinTotal; i++, guesses++)
+        expect((await elevate(s, otto, 'sam', String(300000 + guesses), `127.0.2.${a}`)).status).toBe(401);
+    // The next guess from a fresh address is refused without evaluation…
+    const capped = await elevate(s, otto, 'sam', PIN.sam, '127.0.2.200');
+    expect(capped.status).toBe(429);
+    // …but sam's PIN still unlocks the tablet sam used before, and sam's password works.
+    expect((await elevate(s, olga, 'sam', PIN.sam, '127.0.2.1')).status).toBe(200);
+    expect((await loginAs(s, 'sam', PW.sam, '127.0.2.201')).status).toBe(200);
+    // Another supervisor's PIN is not affected anywhere.
+    expect((await elevate(s, otto, 'sue', PIN.sue, '127.0.2.202')).status).toBe(200);
+    expect(
+      s.audit().some((e) => e.type === 'elevate-failed' && /PIN of sam is refused/.test(e.error ?? '')),
+    ).toBe(true);
   });
 });
 
@@ -294,14 +357,14 @@ describe('3. PINs have at least 6 digits', () => {
     expect(legacy.status).toBe(401);
     expect(String(legacy.body.error)).toMatch(/6 to 12 digits/);
     expect(c.hashes).toHaveLength(0);
-    // Short guesses are not compared but count: five lock sue's PIN.
-    for (let i = 0; i < 5; i++) expect((await elevate(s, op, 'sue', '1234')).status).toBe(401);
+    // Short guesses are not compared but count: with the legacy one, five lock this tablet.
+    for (let i = 0; i < 4; i++) expect((await elevate(s, op, 'sue', '1234')).status).toBe(401);
     expect(c.hashes).toHaveLength(0);
     expect((await elevate(s, op, 'sue', PIN.sue)).status).toBe(429);
     expect(c.hashes).toHaveLength(0);
     expect(
       s.audit().filter((e) => e.type === 'elevate-failed' && /6 to 12 digits/.test(e.error ?? '')),
-    ).toHaveLength(6);
+    ).toHaveLength(5);
   });
 
   it('npm run user refuses PINs shorter than 6 digits or not digits', async () => {

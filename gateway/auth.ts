@@ -115,8 +115,20 @@ export interface RateLimitOptions {
   perUser: number;
   /** Failed logins and PINs per address, whichever the user. */
   perAddress: number;
-  /** Wrong PINs per supervisor, from any address: then the PIN is locked (the password is not). */
+  /**
+   * Wrong PINs per tablet (the operator's session that tried, at its address), whichever the
+   * supervisor: then that tablet may try no more PINs. Never locks a supervisor's PIN for others.
+   */
   perPin: number;
+  /** Wrong PINs per operator account, from any address (an operator moving between tablets). */
+  perPinOperator: number;
+  /**
+   * Backstop against guessing one supervisor's PIN from many operators or addresses: wrong PINs
+   * for that supervisor, from anywhere, enforced only on tablets the supervisor has never
+   * unlocked (`LoginHistory` of (operator, address) pairs), so that the tablets the supervisor
+   * uses keep working, and never for the supervisor's password login.
+   */
+  perPinTotal: number;
   /**
    * Backstop against guessing one password from many addresses: failed logins per user, counted
    * and enforced only for addresses the user has not logged in from (`LoginHistory`), so that an
@@ -131,6 +143,8 @@ export const DEFAULT_RATE_LIMIT: RateLimitOptions = {
   perUser: 5,
   perAddress: 20,
   perPin: 5,
+  perPinOperator: 10,
+  perPinTotal: 30,
   perUserTotal: 100,
 };
 

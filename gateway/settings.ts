@@ -1,4 +1,4 @@
-import { mkdirSync, readFileSync, renameSync, writeFileSync } from 'node:fs';
+import { closeSync, fsyncSync, mkdirSync, openSync, readFileSync, renameSync, writeSync } from 'node:fs';
 import { join } from 'node:path';
 import { z } from 'zod';
 import type { Logger } from './log';
@@ -47,6 +47,12 @@ export const DEFAULT_RETENTION: Retention = { jobsDays: 365, statesDays: 90 };
 
 const settingsSchema = z.object({
   alarmWebhook: z.string().max(2000).nullable().default(null),
+  /**
+   * Hosts the alarm webhook may reach although they are refused otherwise (this computer,
+   * link-local, a machine of the machines file): `host` or `host:port`. Only in the file on the
+   * server (a person with the server's shell), never from the page (`PUT /api/settings`).
+   */
+  webhookAllowHosts: z.array(z.string().trim().min(1).max(300)).max(50).default([]),
   shifts: shiftsSchema.default(DEFAULT_SHIFTS),
   retention: retentionSchema.default(DEFAULT_RETENTION),
 });
@@ -62,6 +68,7 @@ export interface SettingsView {
 export class SettingsStore {
   private value: ServerSettings = {
     alarmWebhook: null,
+    webhookAllowHosts: [],
     shifts: DEFAULT_SHIFTS,
     retention: DEFAULT_RETENTION,
   };
@@ -105,6 +112,11 @@ export class SettingsStore {
     const fromEnv = this.env.SHOPDECK_ALARM_WEBHOOK?.trim();
     if (fromEnv) return webhookUrlProblem(fromEnv) ? null : fromEnv;
     return this.value.alarmWebhook;
+  }
+
+  /** Hosts the settings file allows the webhook to reach although they would be refused. */
+  webhookAllowHosts(): readonly string[] {
+    return this.value.webhookAllowHosts;
   }
 
   view(): SettingsView {
@@ -152,7 +164,14 @@ export class SettingsStore {
   private save(next: ServerSettings): string | null {
     try {
       mkdirSync(join(this.file, '..'), { recursive: true });
-      writeFileSync(`${this.file}.tmp`, JSON.stringify(next, null, 2), { mode: 0o600 });
+      // On disk (fsynced) before the change is answered and audited.
+      const fd = openSync(`${this.file}.tmp`, 'w', 0o600);
+      try {
+        writeSync(fd, JSON.stringify(next, null, 2));
+        fsyncSync(fd);
+      } finally {
+        closeSync(fd);
+      }
       renameSync(`${this.file}.tmp`, this.file);
     } catch (e) {
       return `cannot save the settings: ${String(e)}`;

@@ -6,6 +6,8 @@ import type { FamilyDescriptor } from '../src/fleet/contract';
 import type { Simulator, SimControl } from '../src/fleet/sim';
 import http from 'node:http';
 import type { AddressInfo } from 'node:net';
+import { AlarmCentre } from './alarms';
+import { createLogger, type Logger } from './log';
 import { consoleFetch, login, startGateway, tempDir, user, writeJson } from './test-util';
 
 /**
@@ -111,7 +113,7 @@ async function receiver(): Promise<{ url: string; got: unknown[]; close(): Promi
 }
 
 describe('the alarm centre, with no page open', () => {
-  async function setup() {
+  async function setup(o: { log?: Logger; dir?: string } = {}) {
     const sims = new Map<string, Simulator>();
     const sharing = xtoolFamily.gateway?.sharing;
     const watch = sharing?.watch;
@@ -125,10 +127,12 @@ describe('the alarm centre, with no page open', () => {
         return sim;
       },
     };
-    const t = tempDir();
+    const t = o.dir ? { dir: o.dir, cleanup: () => undefined } : tempDir();
     cleanups.push(t.cleanup);
     const hook = await receiver();
     cleanups.push(hook.close);
+    // The receiver is on this computer: allowed by the server's settings file, as it must be.
+    writeJson(path.join(t.dir, 'settings.json'), { webhookAllowHosts: ['127.0.0.1'] });
     const usersFile = path.join(t.dir, 'users.json');
     writeJson(usersFile, {
       users: [
@@ -159,6 +163,7 @@ describe('the alarm centre, with no page open', () => {
       usersFile,
       env: { SHOPDECK_ALARM_WEBHOOK: hook.url },
       watch: true,
+      ...(o.log ? { log: o.log } : {}),
     });
     cleanups.push(gw.close);
     await until('the watch holds the laser’s socket', () => gw.gw.streamStats('x1').open === 1);
@@ -309,6 +314,63 @@ describe('the alarm centre, with no page open', () => {
     expect(still?.ackBy).toBeNull();
   });
 
+  it('an alarm cannot be acknowledged before it happens, nor by an invented key (finding 3)', async () => {
+    const { gw, flame } = await setup();
+    const otto = await login(gw.url, 'otto', 'otto-pass-1');
+    const vera = await login(gw.url, 'vera', 'vera-pass-1');
+    // The pen test's attack: the flame's real key, before any flame, then invented keys.
+    const early = await ack(gw.url, otto, { machine: 'x1', key: 'xtool-flame' });
+    expect(early.status).toBe(404);
+    expect(await early.json()).not.toHaveProperty('early');
+    for (let i = 0; i < 50; i++)
+      expect((await ack(gw.url, otto, { machine: 'x1', key: `invented-${i}` })).status).toBe(404);
+    expect(gw.gw.audit.all().filter((e) => e.type === 'alarm-ack')).toEqual([]);
+    // The flame that follows at once is unacknowledged, in every list (another person's screen,
+    // one opened afterwards).
+    flame();
+    let listed: Listed = { version: 0, alarms: [] };
+    await until('the flame in the alarm list', async () => {
+      listed = await list(gw.url, vera, '?state=unacknowledged');
+      return listed.alarms.some((a) => a.key === 'xtool-flame');
+    });
+    expect(listed.alarms.find((a) => a.key === 'xtool-flame')).toMatchObject({ machine: 'x1', ackBy: null });
+    const later = await login(gw.url, 'vera', 'vera-pass-1');
+    const fresh = await list(gw.url, later);
+    expect(fresh.alarms.find((a) => a.key === 'xtool-flame')?.ackBy).toBeNull();
+    // Now that the record exists, it can be acknowledged (by its id, as the page does).
+    const id = listed.alarms.find((a) => a.key === 'xtool-flame')?.id;
+    const ok = await ack(gw.url, otto, { id });
+    expect(ok.status).toBe(200);
+    expect((await list(gw.url, vera)).alarms.find((a) => a.key === 'xtool-flame')?.ackBy).toBe('otto');
+  });
+
+  it('the flame is on disk before the log, the audit log or the webhook hear of it (finding 15)', async () => {
+    const t = tempDir();
+    cleanups.push(t.cleanup);
+    const silent = createLogger({ write: () => undefined });
+    /** What a restart would find at this moment: the alarm centre read again from the folder. */
+    const onDiskNow = (): string[] =>
+      new AlarmCentre({ dataDir: t.dir, log: silent }).query({ machines: null }).map((r) => r.key);
+    const whenLogged: string[][] = [];
+    const log = createLogger({
+      write: (line) => {
+        if (/x1: alarm \(/.test(line)) whenLogged.push(onDiskNow());
+      },
+    });
+    const { hook, flame } = await setup({ log, dir: t.dir });
+    // (The watch's audit entry is written in the same step as its log line, right after it.)
+    const whenHooked: string[][] = [];
+    const got = hook.got.length;
+    flame();
+    await until('the webhook received the flame', () => {
+      if (hook.got.length > got && whenHooked.length === 0) whenHooked.push(onDiskNow());
+      return whenHooked.length > 0;
+    });
+    await until('the log line', () => whenLogged.length > 0);
+    expect(whenLogged[0]).toContain('xtool-flame');
+    expect(whenHooked[0]).toContain('xtool-flame');
+  });
+
   it('the webhook URL is a supervisor’s setting; its secret part is never shown', async () => {
     const { gw } = await setup();
     const sam = await login(gw.url, 'sam', 'sam-pass-1');
@@ -329,6 +391,6 @@ describe('the alarm centre, with no page open', () => {
       method: 'POST',
       headers: { cookie: sam },
     });
-    expect(await test.json()).toMatchObject({ ok: true, status: 204 });
+    expect(await test.json()).toEqual({ ok: true, result: 'delivered' });
   });
 });

@@ -121,9 +121,11 @@ export class MachineWatch {
       this.failures = 0;
       this.lastSeen = (this.host.now ?? Date.now)();
     }
+    // Observed first: the alarm centre makes its record durable (alarms.ts) before the change is
+    // announced in the log and the audit log.
+    this.host.observe?.(prev, next);
     for (const c of describeChange(prev, next))
       this.host.report({ machine: this.machine, what: c.what, detail: c.detail, summary: next });
-    this.host.observe?.(prev, next);
   }
 
   /**

@@ -59,6 +59,8 @@ function hook(url: string | null, backoffMs = [20, 20, 20]) {
     log: createLogger({ write: (l) => lines.push(l) }),
     backoffMs,
     timeoutMs: 2000,
+    // The receivers of these tests are on this computer: allowed as the settings file would.
+    allowedHosts: () => ['127.0.0.1'],
   });
   cleanups.push(() => w.close());
   return { w, lines };
@@ -125,6 +127,7 @@ describe('the alarm webhook', () => {
     const w = new Webhook({
       url: () => 'http://127.0.0.1:1/x',
       log: createLogger({ write: (l) => lines.push(l) }),
+      allowedHosts: () => ['127.0.0.1'],
       backoffMs: [60_000],
       maxQueue: 2,
     });
@@ -142,5 +145,90 @@ describe('the alarm webhook', () => {
     expect(webhookUrlProblem('not a url')).toMatch(/not a URL/);
     expect(shownUrl('https://hooks.example.com/services/T0/B1/XYZ?k=1')).toBe('https://hooks.example.com/…');
     expect(shownUrl('http://10.0.0.5:8080/')).toBe('http://10.0.0.5:8080/');
+  });
+});
+
+describe('where the webhook may connect (finding 14)', () => {
+  /** A webhook with its own name resolution: `names` answers, `asked` counts the questions. */
+  function resolving(
+    names: Record<string, string[]>,
+    opts: { allowed?: string[]; machines?: string[] } = {},
+  ) {
+    const asked: string[] = [];
+    const lines: string[] = [];
+    let url = '';
+    const w = new Webhook({
+      url: () => url,
+      log: createLogger({ write: (l) => lines.push(l) }),
+      timeoutMs: 300,
+      allowedHosts: () => opts.allowed ?? [],
+      machineHosts: () => opts.machines ?? [],
+      resolve: (host) => {
+        asked.push(host);
+        const list = names[host];
+        if (!list) return Promise.reject(new Error('ENOTFOUND'));
+        return Promise.resolve(list.map((address) => ({ address, family: address.includes(':') ? 6 : 4 })));
+      },
+    });
+    cleanups.push(() => w.close());
+    return {
+      w,
+      asked,
+      lines,
+      test: (u: string) => {
+        url = u;
+        return w.tryOnce({ event: 'test' });
+      },
+    };
+  }
+
+  it('refuses a name resolving to loopback, link-local, or a machine’s address, before connecting', async () => {
+    const h = resolving(
+      {
+        'hook.rebind.test': ['203.0.113.7', '127.0.0.1'],
+        'metadata.test': ['169.254.169.254'],
+        'v6.test': ['::ffff:127.0.0.1'],
+        'laser.shop.test': ['192.0.2.10'],
+        'alias.shop.test': ['192.0.2.10'],
+      },
+      { machines: ['laser.shop.test', '192.0.2.20'] },
+    );
+    for (const u of [
+      'http://hook.rebind.test/x',
+      'http://metadata.test/latest',
+      'http://v6.test/',
+      'http://laser.shop.test:8080/cnc/data?action=stop',
+      'http://alias.shop.test/',
+      'http://192.0.2.20/machine/code',
+      'http://[::ffff:192.0.2.20]/',
+    ]) {
+      const r = await h.test(u);
+      expect(r.ok, u).toBe(false);
+      expect(r.error, u).toMatch(/^refused: /);
+    }
+    // Nothing was delivered anywhere, and each refusal is in the server's log with its reason.
+    expect(h.lines.filter((l) => /test was not delivered .*refused/.test(l))).toHaveLength(7);
+  });
+
+  it('connects to the address it checked: the name is resolved once, never again by the system', async () => {
+    // 192.0.2.1 (TEST-NET-1) is routed nowhere: the connection fails or times out, but it is not
+    // a failure to resolve `hook.pinned.test` (which the system's resolver could not).
+    const h = resolving({ 'hook.pinned.test': ['192.0.2.1'] });
+    const r = await h.test('http://hook.pinned.test/hook');
+    expect(r.ok).toBe(false);
+    expect(r.error).not.toMatch(/refused|ENOTFOUND|EAI_AGAIN|resolved/);
+    expect(h.asked).toEqual(['hook.pinned.test']);
+  });
+
+  it('an explicitly allowed host is reached, by host or by host:port only', async () => {
+    const r = await receiver([204]);
+    cleanups.push(r.close);
+    const port = new URL(r.url).port;
+    const byPort = resolving({}, { allowed: [`127.0.0.1:${port}`] });
+    expect(await byPort.test(r.url)).toMatchObject({ ok: true, status: 204 });
+    expect((await byPort.test(`http://127.0.0.1:${Number(port) === 1 ? 2 : 1}/x`)).error).toMatch(/^refused/);
+    const wrong = resolving({}, { allowed: ['127.0.0.2'] });
+    expect((await wrong.test(r.url)).error).toMatch(/^refused/);
+    expect(r.got).toHaveLength(1);
   });
 });

@@ -4,6 +4,7 @@ import { afterEach, beforeAll, describe, expect, it, vi } from 'vitest';
 import { registerController } from '../controllers';
 import type { ControllerModule, MachineSession, SessionContext } from '../fleet/contract';
 import { createRuntime, fleetStore, registerRuntime, type MachineRuntime } from '../fleet/fleet';
+import { authStore } from '../fleet/auth';
 import { alwaysVisible } from '../fleet/link';
 import type { MachineInfo } from '../fleet/types';
 
@@ -93,15 +94,38 @@ describe('machine sections', () => {
 
 describe('blocking alarm', () => {
   it('is a modal alert dialog named "Critical alarm"; the page behind is inert until it is acknowledged', async () => {
-    // The gateway: an empty alarm list, and the acknowledgement taken.
+    // The gateway: an empty alarm list until its watch has recorded the flame, then the record;
+    // the acknowledgement taken by the record's id.
     const posted: unknown[] = [];
+    const flame = {
+      id: '7',
+      machine: 'mill',
+      machineName: 'Mill',
+      family: 'duet',
+      key: 'flame',
+      severity: 'critical',
+      text: 'FLAME DETECTED',
+      blocking: true,
+      since: Date.now(),
+      clearedAt: null,
+      ackBy: null as string | null,
+      ackAt: null as number | null,
+    };
+    let recorded = false;
+    let version = 1;
+    // Signed in (open mode): the page reads the alarm list.
+    authStore.setState({ mode: 'open', user: null });
     vi.stubGlobal(
       'fetch',
       vi.fn((url: string, init?: RequestInit) => {
-        if (init?.method === 'POST') posted.push([url, JSON.parse(String(init.body))]);
+        if (init?.method === 'POST') {
+          posted.push([url, JSON.parse(String(init.body))]);
+          Object.assign(flame, { ackBy: 'otto', ackAt: Date.now() });
+          version++;
+        }
         const body = url.startsWith('/api/alarms/ack')
-          ? { alarm: null, early: true }
-          : { version: 1, alarms: [] };
+          ? { alarm: flame }
+          : { version, alarms: recorded ? [{ ...flame }] : [] };
         return Promise.resolve(new Response(JSON.stringify(body), { status: 200 }));
       }),
     );
@@ -129,12 +153,16 @@ describe('blocking alarm', () => {
     });
     expect(screen.getByRole('alertdialog', { name: 'Critical alarm' })).toBe(alarm);
 
+    // The console records the flame (its watch saw it too); the page may not have read it yet.
+    recorded = true;
+    version++;
     fireEvent.click(within(alarm).getByRole('button', { name: /acknowledge/ }));
-    expect(acknowledged).toEqual(['flame']);
-    // Recorded at the gateway (who and when), by machine and key: the list had no record of it yet.
-    expect(posted).toEqual([['/api/alarms/ack', { machine: 'mill', key: 'flame' }]]);
+    // Recorded at the gateway (who and when) by the record's id: never in advance by a key.
+    await waitFor(() => expect(posted).toEqual([['/api/alarms/ack', { id: '7' }]]));
+    await waitFor(() => expect(acknowledged).toEqual(['flame']));
+    await waitFor(() => expect(screen.queryByRole('alertdialog')).toBeNull());
     vi.unstubAllGlobals();
-    expect(screen.queryByRole('alertdialog')).toBeNull();
+    authStore.setState({ mode: 'unknown', user: null });
     await waitFor(() => expect(page.hasAttribute('inert')).toBe(false));
   });
 });

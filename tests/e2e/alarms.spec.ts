@@ -1,4 +1,4 @@
-import { mkdtempSync, rmSync } from 'node:fs';
+import { mkdirSync, mkdtempSync, rmSync, writeFileSync } from 'node:fs';
 import http from 'node:http';
 import type { AddressInfo } from 'node:net';
 import { tmpdir } from 'node:os';
@@ -44,6 +44,10 @@ test.describe('alarm centre', () => {
     await new Promise<void>((r) => receiver?.listen(0, '127.0.0.1', () => r()));
     const hookUrl = `http://127.0.0.1:${(receiver.address() as AddressInfo).port}/hooks/floor-token`;
     writeUsersFile(join(dir, 'users.json'), USERS);
+    // The receiver is on this computer: the server's settings file must allow it (the webhook
+    // refuses this computer, link-local addresses and the machines otherwise).
+    mkdirSync(join(dir, 'data'), { recursive: true });
+    writeFileSync(join(dir, 'data', 'settings.json'), JSON.stringify({ webhookAllowHosts: ['127.0.0.1'] }));
     const port = await freePort();
     base = `http://127.0.0.1:${port}`;
     children.start(['--import', 'tsx', 'server/main.ts', '--port', String(port), '--host', '127.0.0.1'], {

@@ -140,21 +140,58 @@ export function startAlarmFeed(): void {
 
 export type AckTarget = { id: string } | { machine: string; key: string };
 
+/** How long an acknowledgement of an alarm only this page has seen waits for the console's record. */
+export const RECORD_WAIT_MS = 6000;
+const RECORD_POLL_MS = 1000;
+
+/** The console's unacknowledged record of a machine's alarm key (the open one first), if listed. */
+function listedRecord(machine: string, key: string): AlarmRecord | undefined {
+  const mine = (alarmFeed.getState().records ?? []).filter(
+    (r) => r.machine === machine && r.key === key && r.ackAt === null,
+  );
+  return mine.find((r) => r.clearedAt === null) ?? mine.sort((a, b) => b.since - a.since)[0];
+}
+
 /**
- * Acknowledges an alarm at the gateway (who and when are recorded there), then on this page's own
- * view of the machine. Returns an error in words, or null.
+ * The record of an alarm this page saw before the list had it: the list is read again until the
+ * console has recorded it (the gateway's watch sees what this page sees), at most `RECORD_WAIT_MS`.
+ */
+async function waitForRecord(machine: string, key: string): Promise<AlarmRecord | undefined> {
+  const end = Date.now() + RECORD_WAIT_MS;
+  for (;;) {
+    await refreshAlarms();
+    const r = listedRecord(machine, key);
+    if (r || Date.now() >= end) return r;
+    await new Promise((done) => setTimeout(done, RECORD_POLL_MS));
+  }
+}
+
+/**
+ * Acknowledges an alarm at the gateway (who and when are recorded there) by its record's id,
+ * then on this page's own view of the machine. An alarm only this page has seen is acknowledged
+ * once the console has recorded it: nothing is acknowledged in advance (the gateway refuses it),
+ * so the same alarm is never born acknowledged on the other screens. When the console never
+ * records it (its watch does not see the machine), it is acknowledged on this page only, and a
+ * record that comes later asks again. Returns an error in words, or null.
  */
 export async function acknowledgeAlarm(target: AckTarget): Promise<string | null> {
-  // Only this page has seen it (the list has no record yet): acknowledged here at once, and the
-  // record the gateway opens for it is born acknowledged.
-  if ('key' in target) acknowledgeLocally(target.machine, target.key);
+  let id: string;
+  if ('id' in target) id = target.id;
+  else {
+    const rec = listedRecord(target.machine, target.key) ?? (await waitForRecord(target.machine, target.key));
+    if (!rec) {
+      acknowledgeLocally(target.machine, target.key);
+      return null;
+    }
+    id = rec.id;
+  }
   let r: Response;
   try {
     r = await fetch('/api/alarms/ack', {
       method: 'POST',
       credentials: 'same-origin',
       headers: { ...CONSOLE_HEADERS, 'Content-Type': 'application/json' },
-      body: JSON.stringify(target),
+      body: JSON.stringify({ id }),
     });
   } catch (e) {
     return `The acknowledgement did not reach the console: ${e instanceof Error ? e.message : String(e)}`;
@@ -169,10 +206,9 @@ export async function acknowledgeAlarm(target: AckTarget): Promise<string | null
     }
     return `Not acknowledged: ${why}`;
   }
-  if ('id' in target) {
-    const rec = alarmFeed.getState().records?.find((x) => x.id === target.id);
-    if (rec) acknowledgeLocally(rec.machine, rec.key);
-  }
+  const rec = alarmFeed.getState().records?.find((x) => x.id === id);
+  if (rec) acknowledgeLocally(rec.machine, rec.key);
+  else if ('key' in target) acknowledgeLocally(target.machine, target.key);
   await refreshAlarms();
   return null;
 }
