@@ -8,8 +8,8 @@ import {
   parseFilter,
   readBody,
 } from '../../src/controllers/g2core/sim/fail';
-import { LinkDown, SerialLink, type PortOpener } from './link';
-import { isObject, lineProblem, type Json, type JsonObject } from './protocol';
+import { LinkDown, SerialLink, UnsafeBytes, type PortOpener } from './link';
+import { isObject, lineProblem, tooLong, type Json, type JsonObject } from './protocol';
 import { MAX_JOB_BYTES, Streamer, type SerialJob, type SerialOp, type StreamerEvents } from './streamer';
 import { jobView, readJobUpload } from '../../src/controllers/g2core/sim/job-wire';
 
@@ -157,6 +157,7 @@ export class G2coreSerialBridge implements Simulator {
     } catch (e) {
       if (e instanceof G2Fail) return errorResponse(e.code, e.additional);
       if (e instanceof LinkDown) return gatewayDown(`${this.o.name}: ${e.message}`);
+      if (e instanceof UnsafeBytes) return errorResponse(101, e.message);
       throw e;
     }
   }
@@ -304,7 +305,7 @@ export class G2coreSerialBridge implements Simulator {
       throw new G2Fail(106, 'settings cannot change while the machine moves');
     if (!isJson(value)) throw new G2Fail(101, 'not a JSON value');
     const problem = lineProblem(JSON.stringify({ [k]: value }));
-    if (problem) throw new G2Fail(problem.includes('bytes') ? 107 : 101, problem);
+    if (problem) throw new G2Fail(tooLong(problem) ? 107 : 101, `the value ${problem}`);
     const v = await this.ask(k, value);
     return jsonResponse({ value: GROUPS.includes(k) ? { [k]: v } : v });
   }
@@ -323,8 +324,8 @@ export class G2coreSerialBridge implements Simulator {
     if (typeof value === 'string') lines = value.split(/\r?\n/);
     else if (Array.isArray(value) && value.every((l) => typeof l === 'string')) lines = value as string[];
     else throw new G2Fail(101, 'value must be a string or an array of lines');
-    lines = lines.map((l) => l.trim()).filter((l) => l !== '');
-    if (lines.length === 0) throw new G2Fail(101, 'no lines to run');
+    // Numbered as sent: an empty line keeps its number, so a refusal names the line the user wrote.
+    if (lines.every((l) => l.trim() === '')) throw new G2Fail(101, 'no lines to run');
     if (lines.length > MAX_LINES) throw new G2Fail(10, `more than ${MAX_LINES} lines: upload a job`);
     const op = this.streamer.addOperation(value as string[] | string, lines);
     return jsonResponse(op.id, 201);

@@ -139,6 +139,28 @@ describe('serial g2core through the gateway', () => {
     );
   });
 
+  it('a character whose byte is a control (U+0118 is ^X) is refused with 400 naming the line, in a job, MDI and a setting: nothing reaches the board', async () => {
+    const { gw, mb, as } = await setup();
+    await until(async () => (await req(gw, as.vera, 'GET', '/status_report')).status === 200, 'online');
+    await until(async () => mb.board.received.length >= 3, 'the setup read');
+    const received = mb.board.received.length;
+    // The operator's job that would reset the board (a supervisor-only action).
+    const job = await req(gw, as.otto, 'POST', '/job', { name: 'p.nc', gcode: 'G90\nG0 X1 \u0118' });
+    expect(job.status).toBe(400);
+    expect(await job.json()).toMatchObject({
+      status: { code: 101, additional_description: expect.stringMatching(/^line 2: .*U\+0118 .*\^X/) },
+    });
+    // The supervisor's MDI (kill) and setting ("~" cycle start) are refused the same way.
+    const mdi = await req(gw, as.sam, 'POST', '/operation', { optype: 'run', value: ['G0 X1 \u0104 Y1'] });
+    expect(mdi.status).toBe(400);
+    expect(JSON.stringify(await mdi.json())).toMatch(/line 1: .*\^D/);
+    expect((await req(gw, as.sam, 'PUT', '/machine/x/vm', '5\u017e')).status).toBe(400);
+    await new Promise((r) => setTimeout(r, 100));
+    expect(mb.board.received.length).toBe(received);
+    expect(mb.board.controls).toEqual([]);
+    expect(mb.board.stat).toBe(1);
+  });
+
   it('streams a 200-line job through the gateway with a hold, a resume and a kill: exact bytes, at most 4 lines in flight', async () => {
     const { gw, mb, as } = await setup(50);
     await until(async () => (await req(gw, as.vera, 'GET', '/status_report')).status === 200, 'online');

@@ -9,6 +9,7 @@ import {
   type BoardMessage,
   type Json,
   type JsonObject,
+  wireBytes,
 } from './protocol';
 
 /**
@@ -26,9 +27,9 @@ export interface PortInfo {
   productId?: string;
 }
 
-/** What an opened port offers the link. Writes are whole lines or single controls, in order. */
+/** What an opened port offers the link. Writes are whole lines or single controls, in order, as bytes. */
 export interface OpenPort {
-  write(data: string): void;
+  write(data: Buffer): void;
   close(): Promise<void>;
 }
 
@@ -62,6 +63,9 @@ export class LinkDown extends Error {
     super(message);
   }
 }
+
+/** A write refused by the last check before the port (a byte outside printable ASCII). */
+export class UnsafeBytes extends Error {}
 
 export interface Reply {
   r: JsonObject;
@@ -388,9 +392,13 @@ export class SerialLink {
 
   private write(data: string): void {
     if (!this.port) throw new LinkDown('the board is not connected');
+    // The bytes that reach the board are checked, not the string: printable ASCII lines or one
+    // control. Whatever a check before this missed is refused here, and nothing is written.
+    const bytes = wireBytes(data);
+    if (typeof bytes === 'string') throw new UnsafeBytes(`not written to the board: ${bytes}`);
     this.written.push(data);
     if (this.written.length > 100_000) this.written.splice(0, 50_000);
-    this.port.write(data);
+    this.port.write(bytes);
   }
 
   /** Sends what fits: JSON requests first, then the streamer's lines. */

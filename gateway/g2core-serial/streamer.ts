@@ -1,7 +1,15 @@
 import { statusText } from '../../src/controllers/g2core/codes';
 import { G2Fail } from '../../src/controllers/g2core/sim/fail';
 import { pruneEndedJobs } from '../../src/controllers/g2core/sim/job-wire';
-import { CTRL, MAX_REPORT_KEYS, lineProblem, scalarsOf, sendableLine, type JsonObject } from './protocol';
+import {
+  CTRL,
+  MAX_REPORT_KEYS,
+  lineProblem,
+  scalarsOf,
+  sendableLine,
+  tooLong,
+  type JsonObject,
+} from './protocol';
 import { LinkDown, type DataLine, type Reply, type SerialLink } from './link';
 
 /**
@@ -286,7 +294,7 @@ export class Streamer {
       const s = sendableLine(l);
       if (s === null) return;
       const p = lineProblem(s);
-      if (p) throw new G2Fail(p.includes('bytes') ? 107 : 101, `line ${i + 1}: ${p}`);
+      if (p) throw new G2Fail(tooLong(p) ? 107 : 101, `line ${i + 1}: ${p}`);
       out.push(s);
     });
     if (out.length === 0) throw new G2Fail(101, 'no G-code lines to run');
