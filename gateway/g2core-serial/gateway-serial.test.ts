@@ -144,8 +144,13 @@ describe('serial g2core through the gateway', () => {
     await until(async () => (await req(gw, as.vera, 'GET', '/status_report')).status === 200, 'online');
     await until(async () => mb.board.received.length >= 3, 'the setup read');
     const received = mb.board.received.length;
-    // The operator's job that would reset the board (a supervisor-only action).
-    const job = await req(gw, as.otto, 'POST', '/job', { name: 'p.nc', gcode: 'G90\nG0 X1 \u0118' });
+    // The operator's job that would reset the board (a supervisor-only action): not plain G-code,
+    // refused by the gateway's rule for jobs, the line named.
+    const op = await req(gw, as.otto, 'POST', '/job', { name: 'p.nc', gcode: 'G90\nG0 X1 \u0118' });
+    expect(op.status).toBe(403);
+    expect(((await op.json()) as { error: string }).error).toMatch(/line 2 .*outside printable ASCII/);
+    // A supervisor's is refused by the bridge, which checks the bytes it would write.
+    const job = await req(gw, as.sam, 'POST', '/job', { name: 'p.nc', gcode: 'G90\nG0 X1 \u0118' });
     expect(job.status).toBe(400);
     expect(await job.json()).toMatchObject({
       status: { code: 101, additional_description: expect.stringMatching(/^line 2: .*U\+0118 .*\^X/) },
@@ -159,6 +164,54 @@ describe('serial g2core through the gateway', () => {
     expect(mb.board.received.length).toBe(received);
     expect(mb.board.controls).toEqual([]);
     expect(mb.board.stat).toBe(1);
+  });
+
+  it("an operator's job of settings or JSON writes is refused with the line named, nothing written; a supervisor's runs; a plain multipart upload is the operator's", async () => {
+    const { gw, mb, as } = await setup();
+    await until(async () => (await req(gw, as.vera, 'GET', '/status_report')).status === 200, 'online');
+    await until(async () => mb.board.received.length >= 3, 'the setup read');
+    const received = mb.board.received.length;
+    for (const bad of ['G90\n$defa=1', 'G90\n{"xsn":0}', 'G90\nG10 L2 P1 X5', 'G90\nM100 ({"xvm":1})']) {
+      const r = await req(gw, as.otto, 'POST', '/job', { name: 'evil.nc', gcode: bad });
+      expect(r.status, bad).toBe(403);
+      const body = (await r.json()) as { error: string };
+      expect(body.error, bad).toMatch(
+        /^queue a job whose line 2 ".*" is .*needs the supervisor role \(otto is operator\)/,
+      );
+    }
+    // Multipart, as the page uploads a file.
+    const form = new FormData();
+    form.append('file', new Blob(['G90\n$defa=1\n']), 'evil.nc');
+    form.append('name', 'evil.nc');
+    const up = await consoleFetch(`${gw.url}/machines/mill/job`, {
+      method: 'POST',
+      headers: { cookie: as.otto },
+      body: form,
+    });
+    expect(up.status).toBe(403);
+    expect(((await up.json()) as { error: string }).error).toMatch(/line 2 "\$defa=1"/);
+    expect(((await (await req(gw, as.vera, 'GET', '/job')).json()) as unknown[]).length).toBe(0);
+    await new Promise((r) => setTimeout(r, 50));
+    expect(mb.board.received.length).toBe(received);
+    const refused = gw.gw.audit.all().filter((e) => e.type === 'refused' && e.path === '/job');
+    expect(refused.map((e) => e.user)).toEqual(['otto', 'otto', 'otto', 'otto', 'otto']);
+
+    // The operator's plain file is queued and runs.
+    const plain = new FormData();
+    plain.append('file', new Blob(['G90\nG1 X1 F100\n']), 'ok.nc');
+    plain.append('name', 'ok.nc');
+    const ok = await consoleFetch(`${gw.url}/machines/mill/job`, {
+      method: 'POST',
+      headers: { cookie: as.otto },
+      body: plain,
+    });
+    expect(ok.status).toBe(201);
+    // The supervisor's settings job is queued, and an operator may start it (the upload was the approval).
+    const sup = await req(gw, as.sam, 'POST', '/job', { name: 'setup.nc', gcode: '{"xvm":5000}\nG90' });
+    expect(sup.status).toBe(201);
+    const id = String(await sup.json());
+    expect((await req(gw, as.otto, 'PUT', `/job/${id}`, { state: 'run' })).status).toBe(200);
+    await until(async () => mb.board.received.includes('{"xvm":5000}'), 'the supervisor job ran');
   });
 
   it('streams a 200-line job through the gateway with a hold, a resume and a kill: exact bytes, at most 4 lines in flight', async () => {

@@ -125,7 +125,6 @@ function wireByteWords(ch: string): string {
 }
 
 /** Printable ASCII and TAB: the only bytes a line may hold (a line is written one byte per character). */
-// eslint-disable-next-line no-control-regex
 const NOT_PRINTABLE = /[^\t\x20-\x7e]/u;
 
 /**
