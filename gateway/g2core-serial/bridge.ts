@@ -37,6 +37,15 @@ const MOVING = new Set([5, 6, 7, 8, 9, 10]);
 const MAX_LINES = 10_000;
 
 /**
+ * Liveness while no operation runs (idle, held): filtered status reports say nothing while
+ * nothing changes, so a board quiet for `PROBE_AFTER_MS` is asked for a status report (a JSON
+ * request, answered out of band: it never disturbs a job or a hold); quiet for `SILENT_MS`, it is
+ * shown as not answering. While an operation runs, the watchdog ("stuck in run") does this.
+ */
+const PROBE_AFTER_MS = 2000;
+const SILENT_MS = 5000;
+
+/**
  * Sent on every connect and after every reset, and logged: filtered status reports at the
  * captures' rate (a setting the board keeps), then a full report to start from.
  */
@@ -93,11 +102,17 @@ export class G2coreSerialBridge implements Simulator {
   readonly kind = 'g2core' as const;
   readonly link: SerialLink;
   readonly streamer: Streamer;
+  private readonly now: () => number;
+  private readonly ct: (t: unknown) => void;
+  private livenessTimer: unknown = null;
+  private probing = false;
 
   constructor(private readonly o: SerialBridgeOptions) {
     const now = o.now ?? Date.now;
     const st = o.setTimeout ?? ((fn: () => void, ms: number) => setTimeout(fn, ms));
     const ct = o.clearTimeout ?? ((t: unknown) => clearTimeout(t as ReturnType<typeof setTimeout>));
+    this.now = now;
+    this.ct = ct;
     this.link = new SerialLink({
       path: o.serial,
       baudRate: o.baudRate,
@@ -136,11 +151,38 @@ export class G2coreSerialBridge implements Simulator {
       },
     });
     this.link.start();
+    const tick = (): void => {
+      this.livenessTimer = st(() => {
+        this.liveness();
+        tick();
+      }, 1000);
+    };
+    tick();
   }
 
   dispose(): void {
+    if (this.livenessTimer !== null) this.ct(this.livenessTimer);
+    this.livenessTimer = null;
     this.streamer.dispose();
     void this.link.stop();
+  }
+
+  /** No operation runs (idle or held): the watchdog does not watch, this does. */
+  private watchedHere(): boolean {
+    return this.streamer.current()?.state !== 'run';
+  }
+
+  /** A quiet board, idle or held, is asked for a status report (out of band: a job is not disturbed). */
+  private liveness(): void {
+    if (!this.link.online || this.probing || !this.watchedHere()) return;
+    if (this.now() - this.link.lastHeard < PROBE_AFTER_MS) return;
+    this.probing = true;
+    this.link
+      .request('sr', null)
+      .catch(() => undefined)
+      .finally(() => {
+        this.probing = false;
+      });
   }
 
   async fetch(req: Request, rawPath: string): Promise<Response> {
@@ -240,6 +282,11 @@ export class G2coreSerialBridge implements Simulator {
         `${this.o.name}: the board has sent nothing since line ${stuck.line} while running (${STUCK_IN_RUN}). A supervisor can reset the board (POST /machines/${this.o.id}/board/reset)`,
       );
     }
+    const quiet = this.now() - this.link.lastHeard;
+    if (this.watchedHere() && quiet >= SILENT_MS)
+      return gatewayDown(
+        `${this.o.name}: the board has not answered for ${Math.floor(quiet / 1000)} s (it was asked for a status report): hung or busy; its state is not known`,
+      );
     const sr = this.streamer.sr;
     if (Object.keys(sr).length === 0)
       return gatewayDown(`${this.o.name}: waiting for the board's first status report`);
@@ -267,7 +314,7 @@ export class G2coreSerialBridge implements Simulator {
       if (COMMAND_KEYS.has(k)) throw new G2Fail(106, `${k} is a command, not a value`);
       return { raw, k };
     });
-    // All asked at once: the link sends them through its window, the answers come in order.
+    // All asked at once: the link sends them as JSON requests, each answer matched by its key.
     const values = await Promise.all(
       asked.map(({ k }) =>
         this.ask(k, null).catch((e: unknown) => {

@@ -160,7 +160,7 @@ describe('simulated board (quirks from the research notes)', () => {
     expect(out.at(-1)).toBe('{"ack":true}');
     b.receive('{spe:n}\n');
     expect(out.slice(-2)).toEqual([
-      '{"r":{"spe":null},"f":[1,100,8]}',
+      '{"r":{"spe":null},"f":[1,100,9]}', // 101.03: the line's length + 2, as the recorded sessions
       '{"err":{"code":100,"msg":"Unrecognized command or config name"}}',
     ]);
     b.receive('{sv:1}\nG1 X1\n\x04');

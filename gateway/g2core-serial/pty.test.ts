@@ -1,7 +1,13 @@
+import type { BoardSim } from './board-sim';
 import { afterEach, describe, expect, it } from 'vitest';
 import { G2coreSerialBridge } from './bridge';
 import { nativeOpener } from './ports';
 import { ptyUnavailable, startPtyBoard, type PtyBoard } from './pty-board';
+
+/** The lines the board read, without the status requests that ask a quiet board whether it lives (the setup's sv and si first). */
+function boardRead(board: BoardSim): string[] {
+  return board.received.filter((l) => l !== '{"sr":null}');
+}
 
 /**
  * Integration: the bridge on a real device path (a pseudo-terminal pair made by the test) through
@@ -66,7 +72,7 @@ describe.skipIf(why !== null)(`serial g2core on a pseudo-terminal${why ? ` (skip
     expect((await call(bridge, 'PUT', '/job/1', { state: 'kill' })).status).toBe(200);
     await until(() => pty.board.stat === 4, 'killed');
     expect(pty.board.controls).toEqual(['!', '~', '!', '%', '\x04']);
-    const read = pty.board.received.slice(3);
+    const read = boardRead(pty.board).slice(2);
     expect(read).toEqual(lines.slice(0, read.length));
     expect(pty.board.maxPending).toBeLessThanOrEqual(4);
     expect((await call(bridge, 'GET', '/job/1')).body).toMatchObject({ state: 'killed' });
@@ -95,8 +101,8 @@ describe.skipIf(why !== null)(
       });
       cleanups.push(() => bridge.dispose());
       await until(() => bridge.link.online, 'online');
-      await until(() => pty.board.received.length >= 3, 'the setup read');
-      const received = pty.board.received.length;
+      await until(() => boardRead(pty.board).length >= 2, 'the setup read');
+      const received = boardRead(pty.board).length;
       const written = bridge.link.written.length;
       for (const ch of ['\u0118', '\u0104', '\u0121', '\u0125', '\u017e', '\u010a', '\u0105', '\u00a0']) {
         const job = await call(bridge, 'POST', '/job', { name: 'x.nc', gcode: `G90\nG0 X1 ${ch} Y2\nG0 X2` });
@@ -129,7 +135,7 @@ describe.skipIf(why !== null)(
       expect(bridge.link.written.length).toBe(written);
       // Nothing reached the board: no line read, no control acted on, still online and idle.
       await new Promise((r) => setTimeout(r, 200));
-      expect(pty.board.received.length).toBe(received);
+      expect(boardRead(pty.board).length).toBe(received);
       expect(pty.board.controls).toEqual([]);
       expect(pty.board.stat).toBe(1);
       expect(bridge.link.online).toBe(true);
@@ -138,8 +144,55 @@ describe.skipIf(why !== null)(
         201,
       );
       expect((await call(bridge, 'PUT', '/job/1', { state: 'run' })).status).toBe(200);
-      await until(() => pty.board.received.length === received + 2, 'the clean job read');
-      expect(pty.board.received.slice(received)).toEqual(['G0 X1\tY2', 'G0 X3']);
+      await until(() => boardRead(pty.board).length === received + 2, 'the clean job read');
+      expect(boardRead(pty.board).slice(received)).toEqual(['G0 X1\tY2', 'G0 X3']);
+    });
+  },
+);
+
+describe.skipIf(why !== null)(
+  `serial g2core pages during a job on a pseudo-terminal${why ? ` (skipped: ${why})` : ''}`,
+  () => {
+    it('ten pages open and read the settings tree while a 300-line job streams with the planner full: the job ends done, every line once', async () => {
+      const pty: PtyBoard = await startPtyBoard({ msPerLine: 8, plannerSize: 28 });
+      cleanups.push(() => pty.close());
+      const bridge = new G2coreSerialBridge({
+        id: 'pty',
+        name: 'PTY board',
+        serial: pty.path,
+        baudRate: 115200,
+        opener: nativeOpener(),
+        bannerWaitMs: 200,
+      });
+      cleanups.push(() => bridge.dispose());
+      await until(() => bridge.link.online, 'online');
+      const lines = Array.from({ length: 300 }, (_, i) => `G1 X${(i % 40) + 1} Y${i} F1000`);
+      await call(bridge, 'POST', '/job', { name: 'pty.nc', gcode: lines.join('\n') });
+      await call(bridge, 'PUT', '/job/1', { state: 'run' });
+      await until(() => pty.board.waiting > 0, 'lines waiting in the board (the planner full)');
+      let whileWaiting = 0;
+      for (let page = 0; page < 10; page++) {
+        const waiting = pty.board.waiting;
+        const [tree, key, sr] = await Promise.all([
+          call(bridge, 'GET', '/machine'),
+          call(bridge, 'GET', '/machine/x/vm'),
+          call(bridge, 'GET', '/status_report'),
+        ]);
+        if (waiting > 0) whileWaiting++;
+        expect(tree.status).toBe(200);
+        expect(key.status).toBe(200);
+        expect(sr.status).toBe(200);
+        const job = (await call(bridge, 'GET', '/job/1')).body as { state: string };
+        expect(['running', 'done']).toContain(job.state);
+      }
+      expect(whileWaiting).toBeGreaterThan(0);
+      await until(
+        async () => ((await call(bridge, 'GET', '/job/1')).body as { state: string }).state !== 'running',
+        'the job ended',
+      );
+      expect((await call(bridge, 'GET', '/job/1')).body).toMatchObject({ state: 'done', done: 300 });
+      expect(pty.board.received.filter((l) => !l.startsWith('{'))).toEqual(lines);
+      expect(pty.board.maxPending).toBeLessThanOrEqual(4);
     });
   },
 );

@@ -106,7 +106,7 @@ export class Streamer {
   stuck: { since: number; line: number } | null = null;
 
   constructor(private readonly o: StreamerOptions) {
-    o.link.source = () => this.nextLine();
+    o.link.source = (inFlight) => this.nextLine(inFlight);
     o.link.listen({
       message: (m) => {
         this.heard();
@@ -193,9 +193,12 @@ export class Streamer {
       this.finish(op, statusError(stat === 2 ? 204 : stat === 12 ? 205 : 206, 'the machine stopped (alarm)'));
   }
 
-  private nextLine(): DataLine | null {
+  private nextLine(inFlight: number): DataLine | null {
     const op = this.current();
     if (!op || op.state !== 'run' || this.stuck || op.sent >= op.lines.length) return null;
+    // The board answers a JSON line at once, ahead of the lines waiting in it: it is sent only
+    // when every line before it has been answered, so it cannot pass them.
+    if (inFlight > 0 && op.lines[op.sent]!.startsWith('{')) return null;
     const i = op.sent++;
     if (this.watchdog === null) this.armWatchdog();
     return { line: op.lines[i]!, done: (reply) => this.lineDone(op, i, reply) };
