@@ -21,7 +21,7 @@ import { CTRL, MAX_LINE_BYTES, isObject, type Json, type JsonObject } from './pr
  *  - `legacyBangReply`: an old build answered `!` with an empty `{r}` (feedhold-with-queue-reports-2014);
  *  - `stuckInRun()`: the known firmware state where the board stays in run and reports nothing;
  *  - `firmware: '100.26'`: `hp`/`hv` are numbers; `'101.03'`: strings; `'tinyg'`: 4-element footer;
- *  - an unknown key answers status 100 followed by the `{"err":…}` companion line (101.03).
+ *  - an unknown key answers status 100 followed by the `{"err":…}` companion line (101.03 names the key in `r`; TinyG answers an empty `r`, as the CNCjs capture).
  */
 
 export type Firmware = '101.03' | '100.26' | 'tinyg';
@@ -346,8 +346,9 @@ export class BoardSim {
     }
     const found = this.findKey(k);
     if (!found) {
-      this.send({ r: { [k]: null }, f: this.footer(100, len) });
-      if (this.firmware === '101.03')
+      // TinyG does not name the unknown key (the CNCjs capture): `{"r":{},"f":[3,100,10]}`.
+      this.send({ r: this.firmware === 'tinyg' ? {} : { [k]: null }, f: this.footer(100, len) });
+      if (this.firmware !== '100.26')
         this.send({ err: { code: 100, msg: 'Unrecognized command or config name' } });
       return;
     }

@@ -643,4 +643,22 @@ describe('serial g2core bridge', () => {
     expect(await call(bridge, 'GET', '/machine/x/vm')).toEqual({ status: 200, body: { value: 4000 } });
     bridge.dispose();
   });
+
+  it('TinyG answers an unknown key without naming it: the request gets its 404 at once, the G-code lines in flight are not taken for it', async () => {
+    const { mb, bridge } = setup({ firmware: 'tinyg', msPerLine: 100, plannerSize: 4 });
+    await online(bridge);
+    await call(bridge, 'POST', '/job', { name: 't.nc', gcode: JOB.slice(0, 30).join('\n') });
+    await call(bridge, 'PUT', '/job/1', { state: 'run' });
+    await vi.advanceTimersByTimeAsync(250);
+    expect(mb.board.waiting).toBeGreaterThan(0);
+    const [miss, vm] = await Promise.all([
+      call(bridge, 'GET', '/machine/nosuchkey'),
+      call(bridge, 'GET', '/machine/x/vm'),
+    ]);
+    expect(miss.status).toBe(404);
+    expect(vm).toEqual({ status: 200, body: { value: expect.any(Number) } });
+    await vi.advanceTimersByTimeAsync(5000);
+    expect((await call(bridge, 'GET', '/job/1')).body).toMatchObject({ state: 'done', done: 30 });
+    bridge.dispose();
+  });
 });

@@ -423,10 +423,21 @@ export class SerialLink {
       f?.done({ r, status });
       return;
     }
+    // TinyG answers an unknown name without naming it (`{"r":{},"f":[3,100,10]}`, the CNCjs
+    // capture): status 100 is a name only JSON has, so it answers the oldest JSON request.
+    if (status === 100 && this.jsonInFlight.length) {
+      this.jsonInFlight.shift()?.done({ r, status });
+      return;
+    }
     const at = this.inFlight.findIndex((f) => f.key === null);
-    if (at < 0) return;
-    const [f] = this.inFlight.splice(at, 1);
-    f?.done({ r, status });
+    if (at >= 0) {
+      const [f] = this.inFlight.splice(at, 1);
+      f?.done({ r, status });
+      return;
+    }
+    // No G-code line in flight: a refusal without a key answers the oldest JSON request; an empty
+    // OK answer is stray (old builds answer `!` with one) and ignored.
+    if (status !== 0 && this.jsonInFlight.length) this.jsonInFlight.shift()?.done({ r, status });
   }
 
   /** G-code lines in flight are forgotten (after a flush they never answer): the window opens again. */
