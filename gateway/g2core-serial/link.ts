@@ -34,11 +34,15 @@ export const JSON_LANE = 4;
 /** Keys a G-code line's answer may carry (`js.echo_json_gcode_block`, line numbers, messages). */
 const GCODE_ANSWER_KEYS = new Set(['gc', 'n', 'msg']);
 
-/** The key of a JSON line (`{"xvm":5000}` → `xvm`), lower-cased; null when it is not one. */
+/**
+ * The key a JSON line's answer names (`{"xvm":5000}` → `xvm`), lower-cased; null for a G-code
+ * line, and for `{"gc":"G0 X1"}`, which the board answers as G-code (`{"r":{}}`, the captures).
+ */
 export function jsonKeyOf(line: string): string | null {
   if (!line.startsWith('{')) return null;
   const m = /^\{\s*"?([A-Za-z0-9_]+)"?\s*:/.exec(line);
-  return m?.[1]?.toLowerCase() ?? '';
+  const k = m?.[1]?.toLowerCase() ?? '';
+  return GCODE_ANSWER_KEYS.has(k) ? null : k;
 }
 
 export interface PortInfo {
@@ -96,6 +100,8 @@ interface InFlight {
   line: string;
   /** The key a JSON request expects back (null for a G-code line). */
   key: string | null;
+  /** A JSON line (answered at once by the board): a job's is in flight alone. */
+  json?: boolean;
   done(reply: Reply | Error): void;
 }
 
@@ -425,9 +431,13 @@ export class SerialLink {
     }
     // TinyG answers an unknown name without naming it (`{"r":{},"f":[3,100,10]}`, the CNCjs
     // capture): status 100 is a name only JSON has, so it answers the oldest JSON request.
-    if (status === 100 && this.jsonInFlight.length) {
-      this.jsonInFlight.shift()?.done({ r, status });
-      return;
+    if (status === 100) {
+      const lane = this.jsonInFlight.length ? this.jsonInFlight : this.inFlight;
+      const at = lane.findIndex((f) => f.key !== null);
+      if (at >= 0) {
+        lane.splice(at, 1)[0]?.done({ r, status });
+        return;
+      }
     }
     const at = this.inFlight.findIndex((f) => f.key === null);
     if (at >= 0) {
@@ -472,6 +482,8 @@ export class SerialLink {
       if (!this.send(next, this.jsonInFlight)) return;
     }
     while (this.inFlight.length < this.window) {
+      // A job's JSON line is in flight alone: whatever answer comes is its own.
+      if (this.inFlight.some((f) => f.json)) return;
       const next = this.pullData();
       if (!next) return;
       if (!this.send(next, this.inFlight)) return;
@@ -494,7 +506,7 @@ export class SerialLink {
   private pullData(): InFlight | null {
     if (!this.online) return null;
     const d = this.source?.(this.inFlight.length);
-    return d ? { line: d.line, key: jsonKeyOf(d.line), done: d.done } : null;
+    return d ? { line: d.line, key: jsonKeyOf(d.line), json: d.line.startsWith('{'), done: d.done } : null;
   }
 
   /**
@@ -520,7 +532,12 @@ export class SerialLink {
         if (r instanceof Error) reject(r);
         else resolve(r);
       };
-      const entry: InFlight = { line: jsonLine(key, value), key: key.toLowerCase(), done: settle };
+      const entry: InFlight = {
+        line: jsonLine(key, value),
+        key: key.toLowerCase(),
+        json: true,
+        done: settle,
+      };
       this.urgent.push(entry);
       this.pump();
     });

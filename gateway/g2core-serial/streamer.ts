@@ -197,7 +197,8 @@ export class Streamer {
     const op = this.current();
     if (!op || op.state !== 'run' || this.stuck || op.sent >= op.lines.length) return null;
     // The board answers a JSON line at once, ahead of the lines waiting in it: it is sent only
-    // when every line before it has been answered, so it cannot pass them.
+    // when every line before it has been answered, so it cannot pass them, and alone (the link
+    // sends nothing after it until it is answered).
     if (inFlight > 0 && op.lines[op.sent]!.startsWith('{')) return null;
     const i = op.sent++;
     if (this.watchdog === null) this.armWatchdog();
