@@ -252,6 +252,47 @@ describe('serial g2core through the gateway', () => {
     expect(who).toEqual(['otto', 'otto', 'otto', 'otto']);
   });
 
+  it('pages opened through the gateway during a job and during a hold read the machine at once; one resumes the job; the job ends done with every line once', async () => {
+    const { gw, mb, as } = await setup(10);
+    await until(async () => (await req(gw, as.vera, 'GET', '/status_report')).status === 200, 'online');
+    const lines = Array.from({ length: 150 }, (_, i) => `G1 X${(i % 30) + 1} Y${i} F1000`);
+    expect((await req(gw, as.otto, 'POST', '/job', { name: 'p.nc', gcode: lines.join('\n') })).status).toBe(
+      201,
+    );
+    expect((await req(gw, as.otto, 'PUT', '/job/1', { state: 'run' })).status).toBe(200);
+    await until(async () => mb.board.waiting > 0, 'lines waiting in the board (the planner full)');
+    for (let page = 0; page < 10; page++) {
+      const who = [as.vera, as.otto, as.sam][page % 3]!;
+      const [tree, x, sr] = await Promise.all([
+        req(gw, who, 'GET', '/machine'),
+        req(gw, who, 'GET', '/machine/x'),
+        req(gw, who, 'GET', '/status_report'),
+      ]);
+      expect([tree.status, x.status, sr.status]).toEqual([200, 200, 200]);
+    }
+    expect(((await (await req(gw, as.vera, 'GET', '/job/1')).json()) as { state: string }).state).toBe(
+      'running',
+    );
+    expect((await req(gw, as.otto, 'PUT', '/job/1', { state: 'pause' })).status).toBe(200);
+    await until(async () => mb.board.stat === 6, 'held');
+    await new Promise((r) => setTimeout(r, 300));
+    // A page opened during the hold: Hold at once, the settings readable, and Cycle start from it.
+    expect(await (await req(gw, as.vera, 'GET', '/status_report')).json()).toMatchObject({ stat: 6 });
+    expect((await req(gw, as.vera, 'GET', '/machine')).status).toBe(200);
+    expect((await req(gw, as.otto, 'PUT', '/job/1', { state: 'run' })).status).toBe(200);
+    await until(
+      async () =>
+        ((await (await req(gw, as.vera, 'GET', '/job/1')).json()) as { state: string }).state !== 'running',
+      'the job ended',
+    );
+    expect(await (await req(gw, as.vera, 'GET', '/job/1')).json()).toMatchObject({
+      state: 'done',
+      done: 150,
+    });
+    expect(mb.board.received.filter((l) => !l.startsWith('{'))).toEqual(lines);
+    expect(mb.board.maxPending).toBeLessThanOrEqual(4);
+  });
+
   it('an unplugged board answers 503 with the reason at once, and the page sees it come back', async () => {
     const { gw, mb, as } = await setup();
     await until(async () => (await req(gw, as.vera, 'GET', '/status_report')).status === 200, 'online');
