@@ -285,6 +285,13 @@ describe("g2core: what an operator's job may hold", () => {
       expect(d.label, line).toMatch(why);
     }
     expect(operatorJobLineProblem('G1 X1')).toBeNull();
+    expect(operatorJobLineProblem('G1 X1.5 Y.5 Z-2.')).toBeNull();
+    // A long line is refused before any pattern runs on it (no quadratic work on a hostile job).
+    expect(operatorJobLineProblem('G1 X' + '1'.repeat(300))).toMatch(/longer than 255/);
+    const t0 = performance.now();
+    const d = g2coreAccess(job('G1 X' + '1'.repeat(4_000_000) + '!'));
+    expect(d.role).toBe('supervisor');
+    expect(performance.now() - t0).toBeLessThan(5000); // generous: a quadratic pattern takes hours
   });
 
   it("a multipart upload is read as its parsers read it; an odd one is the supervisor's", () => {

@@ -286,6 +286,8 @@ const JOB_G = new Set(
   ),
 );
 const JOB_M = new Set('0 1 2 3 4 5 6 7 8 9 30 60'.split(' '));
+/** The longest job line an operator's job may hold (the firmware's line buffer is 254 bytes). */
+const MAX_JOB_LINE = 255;
 /** Word letters besides G and M: axes, arc centres and radius, feed, speed, tool, dwell, line numbers. */
 const JOB_WORDS = new Set('ABCFIJKNPRSTUVWXYZ'.split(''));
 
@@ -297,6 +299,8 @@ const JOB_WORDS = new Set('ABCFIJKNPRSTUVWXYZ'.split(''));
  */
 export function operatorJobLineProblem(line: string): string | null {
   if (/[^\t\x20-\x7e]/.test(line)) return 'a character outside printable ASCII';
+  // The firmware reads at most 254 bytes a line; the patterns below run on short lines only.
+  if (line.length > MAX_JOB_LINE) return `a line longer than ${MAX_JOB_LINE} characters`;
   const t = line.trim();
   if (t === '' || t === '%') return null;
   if (t.startsWith('$')) return 'a settings write or text-mode command ($)';
@@ -305,8 +309,8 @@ export function operatorJobLineProblem(line: string): string | null {
   let code = t.replace(/\([^()]*\)/g, ' ');
   if (/[()]/.test(code)) return 'an unbalanced or nested comment';
   code = code.replace(/;.*$/, '').replace(/[ \t]/g, '').toUpperCase();
-  const words = /^(?:[A-Z][-+]?(?:\d+\.?\d*|\.\d+))*$/.test(code)
-    ? [...code.matchAll(/([A-Z])([-+]?(?:\d+\.?\d*|\.\d+))/g)]
+  const words = /^(?:[A-Z][-+]?(?:\d+(?:\.\d*)?|\.\d+))*$/.test(code)
+    ? [...code.matchAll(/([A-Z])([-+]?(?:\d+(?:\.\d*)?|\.\d+))/g)]
     : null;
   if (!words) return 'not plain G-code';
   for (const [, letter = '', num = ''] of words) {
