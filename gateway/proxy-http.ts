@@ -223,17 +223,25 @@ export function createHttpProxy(ctx: GatewayContext) {
         refuse(req, res, m, method, t, least, pre);
         return;
       }
+      const limit = fam?.accessBodyLimit?.(method, t.path) ?? MAX_CLASSIFY_BODY;
       try {
-        body = await readBody(req, MAX_CLASSIFY_BODY);
+        body = await readBody(req, limit);
       } catch (e) {
         if (e instanceof BodyTooLarge) {
-          sendJson(res, 413, { error: `request body larger than ${MAX_CLASSIFY_BODY} bytes` });
+          sendJson(res, 413, { error: `request body larger than ${limit} bytes` });
           return;
         }
         throw e;
       }
     }
-    const decision = classify(m, { method, path: t.path, query: t.query, body: body?.toString('utf8') });
+    const contentType = body ? req.headers['content-type'] : undefined;
+    const decision = classify(m, {
+      method,
+      path: t.path,
+      query: t.query,
+      body: body?.toString('utf8'),
+      contentType,
+    });
     const isCommand = !READ_METHODS.has(method) || decision.command;
     if (isCommand) {
       // A GET the family marks as a command (`/cnc/data?action=stop`) needs the same proof as a

@@ -10,11 +10,18 @@ import { CTRL, MAX_LINE_BYTES, isObject, type Json, type JsonObject } from './pr
  * motion line takes `msPerLine` in the planner. Used by the tests, and by `npm run sim` on a
  * pseudo-terminal. Everything here is SIMULATED.
  *
+ * As the firmware (g2core `xio.cpp` `_scanBuffer`, `controller.cpp` `_dispatch_control`): a line
+ * whose first character is `{` is a control: it is read and answered as soon as it arrives, ahead
+ * of the G-code lines waiting in the board, with the planner full and throughout a hold. G-code
+ * lines are the queue: read only while the planner has room (a full planner, the normal state of
+ * a long job, and a hold leave them waiting, unanswered). The footer is `[1, status, bytes]`,
+ * bytes being the line's length + 2 on 101.03 (as the recorded sessions show it), + 1 elsewhere.
+ *
  * Quirks it reproduces on request (research notes):
  *  - `legacyBangReply`: an old build answered `!` with an empty `{r}` (feedhold-with-queue-reports-2014);
  *  - `stuckInRun()`: the known firmware state where the board stays in run and reports nothing;
  *  - `firmware: '100.26'`: `hp`/`hv` are numbers; `'101.03'`: strings; `'tinyg'`: 4-element footer;
- *  - an unknown key answers status 100 followed by the `{"err":…}` companion line (101.03).
+ *  - an unknown key answers status 100 followed by the `{"err":…}` companion line (101.03 names the key in `r`; TinyG answers an empty `r`, as the CNCjs capture).
  */
 
 export type Firmware = '101.03' | '100.26' | 'tinyg';
@@ -25,6 +32,8 @@ export interface BoardSimOptions {
   plannerSize?: number;
   msPerLine?: number;
   legacyBangReply?: boolean;
+  /** `js.echo_json_gcode_block`: a G-code line's answer names it (`{"r":{"gc":"G1X1"}}`). */
+  echoGcode?: boolean;
   setTimeout?: (fn: () => void, ms: number) => unknown;
   clearTimeout?: (t: unknown) => void;
 }
@@ -62,6 +71,8 @@ export class BoardSim {
   private moveTimer: unknown = null;
   private srTimer: unknown = null;
   private stuck = false;
+  /** Hung: reads nothing, answers nothing, reports nothing (only ^X is seen). */
+  private hung = false;
   private alive = true;
   /** Most lines ever waiting unread: more than the host's window means the host overfilled. */
   maxPending = 0;
@@ -70,12 +81,23 @@ export class BoardSim {
   readonly controls: string[] = [];
   private readonly o: Required<Omit<BoardSimOptions, 'firmware'>>;
 
+  /** G-code lines received and waiting unread (the planner is full, or the board holds). */
+  get waiting(): number {
+    return this.pending.length;
+  }
+
+  /** Lines in the planner (taken, answered, not yet run). */
+  get planned(): number {
+    return this.planner.length;
+  }
+
   constructor(opts: BoardSimOptions = {}) {
     this.firmware = opts.firmware ?? '101.03';
     this.o = {
       plannerSize: opts.plannerSize ?? 28,
       msPerLine: opts.msPerLine ?? 50,
       legacyBangReply: opts.legacyBangReply ?? false,
+      echoGcode: opts.echoGcode ?? false,
       setTimeout: opts.setTimeout ?? ((fn, ms) => setTimeout(fn, ms)),
       clearTimeout: opts.clearTimeout ?? ((t) => clearTimeout(t as ReturnType<typeof setTimeout>)),
     };
@@ -109,6 +131,7 @@ export class BoardSim {
   private clear(): void {
     this.stopTimers();
     this.stuck = false;
+    this.hung = false;
     this.pending = [];
     this.planner = [];
     this.rxLine = '';
@@ -125,6 +148,19 @@ export class BoardSim {
     this.stopTimers();
   }
 
+  /** A board that hangs while idle (or anywhere): no answer, no report, until a reset. */
+  hang(): void {
+    this.hung = true;
+    this.stopTimers();
+  }
+
+  /** The hung board comes back by itself (it was busy, not dead). */
+  unhang(): void {
+    this.hung = false;
+    this.scheduleSr();
+    this.readLines();
+  }
+
   private stopTimers(): void {
     if (this.moveTimer !== null) this.o.clearTimeout(this.moveTimer);
     if (this.srTimer !== null) this.o.clearTimeout(this.srTimer);
@@ -133,7 +169,7 @@ export class BoardSim {
   }
 
   private send(v: JsonObject): void {
-    if (this.alive) this.out(JSON.stringify(v));
+    if (this.alive && !this.hung) this.out(JSON.stringify(v));
   }
 
   private footer(status: number, len: number): number[] {
@@ -165,7 +201,7 @@ export class BoardSim {
     if (!this.alive) return;
     const text = typeof bytes === 'string' ? bytes : bytes.toString('latin1');
     for (const ch of text) {
-      if (this.stuck && ch !== CTRL.reset) continue;
+      if ((this.stuck || this.hung) && ch !== CTRL.reset) continue;
       if (ch === CTRL.feedhold) {
         this.controls.push(ch);
         this.feedhold();
@@ -185,8 +221,15 @@ export class BoardSim {
         continue;
       }
       if (ch === '\n' || ch === '\r') {
-        if (this.rxLine !== '') this.pending.push(this.rxLine);
+        const line = this.rxLine;
         this.rxLine = '';
+        // A JSON line is a control: answered now, ahead of the G-code lines waiting.
+        if (line.startsWith('{')) {
+          this.received.push(line);
+          this.execute(line);
+          continue;
+        }
+        if (line !== '') this.pending.push(line);
         this.maxPending = Math.max(this.maxPending, this.pending.length);
         this.readLines();
         continue;
@@ -241,7 +284,7 @@ export class BoardSim {
 
   /** Reads waiting lines while the planner has room (a full planner stops reading: no `{r}`). */
   private readLines(): void {
-    while (this.pending.length && this.planner.length < this.o.plannerSize && !this.stuck) {
+    while (this.pending.length && this.planner.length < this.o.plannerSize && !this.stuck && !this.hung) {
       const line = this.pending.shift()!;
       this.received.push(line);
       this.execute(line);
@@ -249,8 +292,9 @@ export class BoardSim {
   }
 
   private execute(line: string): void {
-    const len = Buffer.byteLength(line) + 1;
-    if (len >= MAX_LINE_BYTES) {
+    const size = Buffer.byteLength(line) + 1;
+    const len = size + (this.firmware === '101.03' ? 1 : 0);
+    if (size >= MAX_LINE_BYTES) {
       this.send({ r: {}, f: this.footer(107, len) });
       return;
     }
@@ -260,7 +304,7 @@ export class BoardSim {
       return;
     }
     const status = this.gcode(t);
-    this.send({ r: {}, f: this.footer(status, len) });
+    this.send({ r: this.o.echoGcode ? { gc: t } : {}, f: this.footer(status, len) });
   }
 
   private jsonLine(t: string, len: number): void {
@@ -302,8 +346,9 @@ export class BoardSim {
     }
     const found = this.findKey(k);
     if (!found) {
-      this.send({ r: { [k]: null }, f: this.footer(100, len) });
-      if (this.firmware === '101.03')
+      // TinyG does not name the unknown key (the CNCjs capture): `{"r":{},"f":[3,100,10]}`.
+      this.send({ r: this.firmware === 'tinyg' ? {} : { [k]: null }, f: this.footer(100, len) });
+      if (this.firmware !== '100.26')
         this.send({ err: { code: 100, msg: 'Unrecognized command or config name' } });
       return;
     }

@@ -58,6 +58,11 @@ function wire(bridge: G2coreSerialBridge): string {
   return bridge.link.written.join('');
 }
 
+/** What the gateway wrote, without the status requests that ask a quiet board whether it lives. */
+function writtenBut(bridge: G2coreSerialBridge, from = 0): string[] {
+  return bridge.link.written.slice(from).filter((w) => w !== '{"sr":null}\n');
+}
+
 async function online(bridge: G2coreSerialBridge): Promise<void> {
   for (let i = 0; i < 50 && !bridge.link.online; i++) await vi.advanceTimersByTimeAsync(100);
   expect(bridge.link.state.state).toBe('online');
@@ -152,9 +157,9 @@ describe('serial g2core bridge', () => {
     expect((await call(bridge, 'PUT', '/job/1', { state: 'pause' })).body).toMatchObject({ state: 'paused' });
     await vi.advanceTimersByTimeAsync(3000);
     expect((await call(bridge, 'GET', '/status_report')).body).toMatchObject({ stat: 6 });
-    const heldAt = bridge.link.written.length;
+    const heldAt = writtenBut(bridge).length;
     await vi.advanceTimersByTimeAsync(3000);
-    expect(bridge.link.written.length).toBe(heldAt); // nothing fed while held
+    expect(writtenBut(bridge).length).toBe(heldAt); // nothing fed while held (a held board is asked whether it lives)
 
     expect((await call(bridge, 'PUT', '/job/1', { state: 'run' })).body).toMatchObject({ state: 'running' });
     await vi.advanceTimersByTimeAsync(1500);
@@ -172,7 +177,7 @@ describe('serial g2core bridge', () => {
 
     // The exact bytes after the setup: job lines in order, each once, with "!" then "~" between
     // two lines, and "!%^D" at a line start; nothing after the kill.
-    const after = bridge.link.written.slice(3);
+    const after = writtenBut(bridge, 3);
     const controls = after.filter((w) => !w.endsWith('\n'));
     expect(controls).toEqual(['!', '~', '!', '%', '\x04']);
     const lines = after.filter((w) => w.endsWith('\n')).map((w) => w.slice(0, -1));
@@ -192,7 +197,7 @@ describe('serial g2core bridge', () => {
     expect(bridge.link.maxInFlight).toBeLessThanOrEqual(4);
     expect(mb.board.maxPending).toBeLessThanOrEqual(4);
     // The board read the lines in the same order (no line duplicated or skipped).
-    const read = mb.board.received.slice(3);
+    const read = mb.board.received.slice(3).filter((l) => l !== '{"sr":null}');
     expect(read).toEqual(JOB.slice(0, read.length));
     expect(mb.board.controls).toEqual(['!', '~', '!', '%', '\x04']);
     expect(events.some((e) => /job 1 "part.nc" killed/.test(e))).toBe(true);
@@ -211,7 +216,7 @@ describe('serial g2core bridge', () => {
     await vi.advanceTimersByTimeAsync(3000);
     expect((await call(bridge, 'GET', '/job/1')).body).toMatchObject({ state: 'done', done: 3, lines: 3 });
     // Comments and "%" delimiters never reach the board.
-    expect(bridge.link.written.slice(3)).toEqual(['G90\n', 'G1 X5 F100\n', 'G1 X10\n']);
+    expect(writtenBut(bridge, 3)).toEqual(['G90\n', 'G1 X5 F100\n', 'G1 X10\n']);
     expect((await call(bridge, 'GET', '/status_report')).body).toMatchObject({ stat: 3, posx: 10 });
     bridge.dispose();
   });
@@ -331,8 +336,13 @@ describe('serial g2core bridge', () => {
     mb.replug();
     await vi.advanceTimersByTimeAsync(12_000);
     expect(bridge.link.state.state).toBe('online');
-    // Only the setup again: no job line replayed.
-    expect(bridge.link.written.slice(sentBefore)).toEqual(['{"sv":1}\n', '{"si":250}\n', '{"sr":null}\n']);
+    // Only the setup again (and status requests asking whether it lives): no job line replayed.
+    expect(bridge.link.written.slice(sentBefore, sentBefore + 3)).toEqual([
+      '{"sv":1}\n',
+      '{"si":250}\n',
+      '{"sr":null}\n',
+    ]);
+    expect(writtenBut(bridge, sentBefore + 3)).toEqual([]);
     expect((await call(bridge, 'GET', '/status_report')).status).toBe(200);
     bridge.dispose();
   });
@@ -486,6 +496,169 @@ describe('serial g2core bridge', () => {
       status: 200,
       body: { value: expect.any(Number) },
     });
+    bridge.dispose();
+  });
+
+  // ------------------------------------------------------------------ the board as the firmware is
+
+  it('the board answers JSON ahead of G-code lines waiting in it (as the firmware does): the simulated board itself', async () => {
+    const { mb, bridge } = setup({ msPerLine: 1000, plannerSize: 2 });
+    await online(bridge);
+    // Planner of 2 and 1 s per move: the third and fourth lines wait in the board.
+    mb.board.receive('G1 X1\nG1 X2\nG1 X3\nG1 X4\n{"xvm":null}\n');
+    expect(mb.board.waiting).toBe(2);
+    const seen = mb.board.received.slice(3);
+    expect(seen).toEqual(['G1 X1', 'G1 X2', '{"xvm":null}']);
+    await vi.advanceTimersByTimeAsync(2500);
+    expect(mb.board.received.slice(3)).toEqual(['G1 X1', 'G1 X2', '{"xvm":null}', 'G1 X3', 'G1 X4']);
+    bridge.dispose();
+  });
+
+  it('a job of 300 lines with the planner full throughout, while pages open, close and read the settings tree: every line once, in order, the job done', async () => {
+    const { mb, bridge } = setup({ msPerLine: 50, plannerSize: 28 });
+    await online(bridge);
+    const lines = Array.from({ length: 300 }, (_, i) => `G1 X${(i % 50) + 1} Y${i} F1000`);
+    await call(bridge, 'POST', '/job', { name: 'long.nc', gcode: lines.join('\n') });
+    await call(bridge, 'PUT', '/job/1', { state: 'run' });
+    await vi.advanceTimersByTimeAsync(2000);
+    let readsWhileWaiting = 0;
+    for (let page = 0; page < 10; page++) {
+      // A page opens: the machine, its settings tree and single keys, and the status report.
+      const waiting = mb.board.waiting;
+      const [tree, x, vm, sr, jobs] = await Promise.all([
+        call(bridge, 'GET', '/machine'),
+        call(bridge, 'GET', '/machine/x'),
+        call(bridge, 'GET', '/machine/x/vm'),
+        call(bridge, 'GET', '/status_report'),
+        call(bridge, 'GET', '/job'),
+      ]);
+      if (waiting > 0) readsWhileWaiting++;
+      expect(tree.status).toBe(200);
+      expect((tree.body as { value: Record<string, unknown> }).value).toMatchObject({
+        x: expect.objectContaining({ vm: expect.any(Number) }),
+        sys: expect.any(Object),
+      });
+      expect(x.body).toMatchObject({ value: { vm: expect.any(Number) } });
+      expect(vm).toEqual({ status: 200, body: { value: expect.any(Number) } });
+      expect(sr.body).toMatchObject({ stat: 5 });
+      expect(jobs.body).toMatchObject([{ state: 'running' }]);
+      await vi.advanceTimersByTimeAsync(700);
+    }
+    expect(readsWhileWaiting).toBeGreaterThan(5); // the planner stayed full: lines waited in the board
+    await vi.advanceTimersByTimeAsync(20_000);
+    const job = (await call(bridge, 'GET', '/job/1')).body as { state: string; done: number };
+    expect(job).toMatchObject({ state: 'done', done: 300 });
+    const gcode = mb.board.received.filter((l) => !l.startsWith('{'));
+    expect(gcode).toEqual(lines);
+    expect(bridge.link.maxInFlight).toBeLessThanOrEqual(4);
+    expect(mb.board.maxPending).toBeLessThanOrEqual(4);
+    expect(events.filter((e) => /job 1/.test(e))).toEqual([
+      'info: job 1 "long.nc" started (300 lines)',
+      'info: job 1 "long.nc" done at line 300 of 300',
+    ]);
+    bridge.dispose();
+  });
+
+  it('a hold of 60 s with lines waiting: pages opened during it see Hold at once, read settings, and one resumes the job to its end', async () => {
+    const { mb, bridge } = setup({ msPerLine: 50, plannerSize: 28 });
+    await online(bridge);
+    const lines = Array.from({ length: 200 }, (_, i) => `G1 X${i + 1} F1000`);
+    await call(bridge, 'POST', '/job', { name: 'held.nc', gcode: lines.join('\n') });
+    await call(bridge, 'PUT', '/job/1', { state: 'run' });
+    await vi.advanceTimersByTimeAsync(1500);
+    expect((await call(bridge, 'PUT', '/job/1', { state: 'pause' })).body).toMatchObject({ state: 'paused' });
+    await vi.advanceTimersByTimeAsync(500);
+    expect(mb.board.stat).toBe(6);
+    expect(mb.board.waiting).toBeGreaterThan(0); // lines wait in the board throughout the hold
+    const gcodeWritten = (): number => bridge.link.written.filter((w) => /^G/.test(w)).length;
+    const heldAt = gcodeWritten();
+    for (let s = 0; s < 60; s += 5) {
+      await vi.advanceTimersByTimeAsync(5000);
+      // Every page sees the true state at once: held, online, its settings readable.
+      const sr = await call(bridge, 'GET', '/status_report');
+      expect(sr).toMatchObject({ status: 200, body: { stat: 6 } });
+      if (s === 30) {
+        // A page opened in the middle of the hold: the whole tree, then Cycle start from it.
+        expect((await call(bridge, 'GET', '/machine')).status).toBe(200);
+        expect((await call(bridge, 'GET', '/machine/sys')).status).toBe(200);
+        expect((await call(bridge, 'GET', '/job/1')).body).toMatchObject({ state: 'paused' });
+      }
+    }
+    expect(gcodeWritten()).toBe(heldAt); // no G-code line fed while held
+    expect(mb.board.waiting).toBeGreaterThan(0);
+    expect((await call(bridge, 'PUT', '/job/1', { state: 'run' })).body).toMatchObject({ state: 'running' });
+    await vi.advanceTimersByTimeAsync(15_000);
+    expect((await call(bridge, 'GET', '/job/1')).body).toMatchObject({ state: 'done', done: 200 });
+    expect(mb.board.received.filter((l) => !l.startsWith('{'))).toEqual(lines);
+    bridge.dispose();
+  });
+
+  it('a board that goes silent while idle reads as not answering within 5 s (asked every few seconds), and online again when it answers', async () => {
+    const { mb, bridge } = setup();
+    await online(bridge);
+    // Idle and quiet (filtered reports send nothing): still known alive, it is asked.
+    await vi.advanceTimersByTimeAsync(20_000);
+    expect((await call(bridge, 'GET', '/status_report')).status).toBe(200);
+    expect(bridge.link.written.filter((w) => w === '{"sr":null}\n').length).toBeGreaterThan(3);
+    mb.board.hang();
+    await vi.advanceTimersByTimeAsync(5000);
+    const r = await call(bridge, 'GET', '/status_report');
+    expect(r.status).toBe(503);
+    expect(r.body).toMatchObject({
+      gateway: true,
+      error: expect.stringMatching(/Mill: the board has not answered for [5-7] s/),
+    });
+    mb.board.unhang();
+    await vi.advanceTimersByTimeAsync(3000);
+    expect((await call(bridge, 'GET', '/status_report')).status).toBe(200);
+    bridge.dispose();
+  });
+
+  it('G-code answers that echo the line ({"r":{"gc":…}}) are still G-code answers', async () => {
+    const { mb, bridge } = setup({ msPerLine: 20, echoGcode: true });
+    await online(bridge);
+    await call(bridge, 'POST', '/job', { name: 'e.nc', gcode: JOB.slice(0, 60).join('\n') });
+    await call(bridge, 'PUT', '/job/1', { state: 'run' });
+    await vi.advanceTimersByTimeAsync(300);
+    expect((await call(bridge, 'GET', '/machine/x/vm')).status).toBe(200);
+    await vi.advanceTimersByTimeAsync(5000);
+    expect((await call(bridge, 'GET', '/job/1')).body).toMatchObject({ state: 'done', done: 60 });
+    expect(mb.board.received.filter((l) => !l.startsWith('{'))).toEqual(JOB.slice(0, 60));
+    bridge.dispose();
+  });
+
+  it("a supervisor's job with a JSON line: it is sent only when the lines before it are answered (the board would run it ahead of them)", async () => {
+    const { mb, bridge } = setup({ msPerLine: 200, plannerSize: 2 });
+    await online(bridge);
+    const gcode = ['G1 X1 F100', 'G1 X2', 'G1 X3', 'G1 X4', '{"xvm":4000}', 'G1 X5'];
+    await call(bridge, 'POST', '/job', { name: 'mixed.nc', gcode: gcode.join('\n') });
+    await call(bridge, 'PUT', '/job/1', { state: 'run' });
+    await vi.advanceTimersByTimeAsync(10);
+    // Two lines planned, two waiting in the board: the JSON line is not written yet.
+    expect(mb.board.waiting).toBe(2);
+    expect(bridge.link.written).not.toContain('{"xvm":4000}\n');
+    await vi.advanceTimersByTimeAsync(5000);
+    expect((await call(bridge, 'GET', '/job/1')).body).toMatchObject({ state: 'done', done: 6 });
+    expect(mb.board.received.filter((l) => l !== '{"sr":null}').slice(2)).toEqual(gcode);
+    expect(await call(bridge, 'GET', '/machine/x/vm')).toEqual({ status: 200, body: { value: 4000 } });
+    bridge.dispose();
+  });
+
+  it('TinyG answers an unknown key without naming it: the request gets its 404 at once, the G-code lines in flight are not taken for it', async () => {
+    const { mb, bridge } = setup({ firmware: 'tinyg', msPerLine: 100, plannerSize: 4 });
+    await online(bridge);
+    await call(bridge, 'POST', '/job', { name: 't.nc', gcode: JOB.slice(0, 30).join('\n') });
+    await call(bridge, 'PUT', '/job/1', { state: 'run' });
+    await vi.advanceTimersByTimeAsync(250);
+    expect(mb.board.waiting).toBeGreaterThan(0);
+    const [miss, vm] = await Promise.all([
+      call(bridge, 'GET', '/machine/nosuchkey'),
+      call(bridge, 'GET', '/machine/x/vm'),
+    ]);
+    expect(miss.status).toBe(404);
+    expect(vm).toEqual({ status: 200, body: { value: expect.any(Number) } });
+    await vi.advanceTimersByTimeAsync(5000);
+    expect((await call(bridge, 'GET', '/job/1')).body).toMatchObject({ state: 'done', done: 30 });
     bridge.dispose();
   });
 });

@@ -8,8 +8,8 @@ import {
   parseFilter,
   readBody,
 } from '../../src/controllers/g2core/sim/fail';
-import { LinkDown, SerialLink, type PortOpener } from './link';
-import { isObject, lineProblem, type Json, type JsonObject } from './protocol';
+import { LinkDown, SerialLink, UnsafeBytes, type PortOpener } from './link';
+import { isObject, lineProblem, tooLong, type Json, type JsonObject } from './protocol';
 import { MAX_JOB_BYTES, Streamer, type SerialJob, type SerialOp, type StreamerEvents } from './streamer';
 import { jobView, readJobUpload } from '../../src/controllers/g2core/sim/job-wire';
 
@@ -35,6 +35,15 @@ const OVERRIDES = new Set(['mfo', 'mto', 'sso']);
 const COMMAND_KEYS = new Set(['clear', 'clr', 'alarm', 'shutd', 'panic']);
 const MOVING = new Set([5, 6, 7, 8, 9, 10]);
 const MAX_LINES = 10_000;
+
+/**
+ * Liveness while no operation runs (idle, held): filtered status reports say nothing while
+ * nothing changes, so a board quiet for `PROBE_AFTER_MS` is asked for a status report (a JSON
+ * request, answered out of band: it never disturbs a job or a hold); quiet for `SILENT_MS`, it is
+ * shown as not answering. While an operation runs, the watchdog ("stuck in run") does this.
+ */
+const PROBE_AFTER_MS = 2000;
+const SILENT_MS = 5000;
 
 /**
  * Sent on every connect and after every reset, and logged: filtered status reports at the
@@ -93,11 +102,17 @@ export class G2coreSerialBridge implements Simulator {
   readonly kind = 'g2core' as const;
   readonly link: SerialLink;
   readonly streamer: Streamer;
+  private readonly now: () => number;
+  private readonly ct: (t: unknown) => void;
+  private livenessTimer: unknown = null;
+  private probing = false;
 
   constructor(private readonly o: SerialBridgeOptions) {
     const now = o.now ?? Date.now;
     const st = o.setTimeout ?? ((fn: () => void, ms: number) => setTimeout(fn, ms));
     const ct = o.clearTimeout ?? ((t: unknown) => clearTimeout(t as ReturnType<typeof setTimeout>));
+    this.now = now;
+    this.ct = ct;
     this.link = new SerialLink({
       path: o.serial,
       baudRate: o.baudRate,
@@ -136,11 +151,38 @@ export class G2coreSerialBridge implements Simulator {
       },
     });
     this.link.start();
+    const tick = (): void => {
+      this.livenessTimer = st(() => {
+        this.liveness();
+        tick();
+      }, 1000);
+    };
+    tick();
   }
 
   dispose(): void {
+    if (this.livenessTimer !== null) this.ct(this.livenessTimer);
+    this.livenessTimer = null;
     this.streamer.dispose();
     void this.link.stop();
+  }
+
+  /** No operation runs (idle or held): the watchdog does not watch, this does. */
+  private watchedHere(): boolean {
+    return this.streamer.current()?.state !== 'run';
+  }
+
+  /** A quiet board, idle or held, is asked for a status report (out of band: a job is not disturbed). */
+  private liveness(): void {
+    if (!this.link.online || this.probing || !this.watchedHere()) return;
+    if (this.now() - this.link.lastHeard < PROBE_AFTER_MS) return;
+    this.probing = true;
+    this.link
+      .request('sr', null)
+      .catch(() => undefined)
+      .finally(() => {
+        this.probing = false;
+      });
   }
 
   async fetch(req: Request, rawPath: string): Promise<Response> {
@@ -157,6 +199,7 @@ export class G2coreSerialBridge implements Simulator {
     } catch (e) {
       if (e instanceof G2Fail) return errorResponse(e.code, e.additional);
       if (e instanceof LinkDown) return gatewayDown(`${this.o.name}: ${e.message}`);
+      if (e instanceof UnsafeBytes) return errorResponse(101, e.message);
       throw e;
     }
   }
@@ -239,6 +282,11 @@ export class G2coreSerialBridge implements Simulator {
         `${this.o.name}: the board has sent nothing since line ${stuck.line} while running (${STUCK_IN_RUN}). A supervisor can reset the board (POST /machines/${this.o.id}/board/reset)`,
       );
     }
+    const quiet = this.now() - this.link.lastHeard;
+    if (this.watchedHere() && quiet >= SILENT_MS)
+      return gatewayDown(
+        `${this.o.name}: the board has not answered for ${Math.floor(quiet / 1000)} s (it was asked for a status report): hung or busy; its state is not known`,
+      );
     const sr = this.streamer.sr;
     if (Object.keys(sr).length === 0)
       return gatewayDown(`${this.o.name}: waiting for the board's first status report`);
@@ -266,7 +314,7 @@ export class G2coreSerialBridge implements Simulator {
       if (COMMAND_KEYS.has(k)) throw new G2Fail(106, `${k} is a command, not a value`);
       return { raw, k };
     });
-    // All asked at once: the link sends them through its window, the answers come in order.
+    // All asked at once: the link sends them as JSON requests, each answer matched by its key.
     const values = await Promise.all(
       asked.map(({ k }) =>
         this.ask(k, null).catch((e: unknown) => {
@@ -304,7 +352,7 @@ export class G2coreSerialBridge implements Simulator {
       throw new G2Fail(106, 'settings cannot change while the machine moves');
     if (!isJson(value)) throw new G2Fail(101, 'not a JSON value');
     const problem = lineProblem(JSON.stringify({ [k]: value }));
-    if (problem) throw new G2Fail(problem.includes('bytes') ? 107 : 101, problem);
+    if (problem) throw new G2Fail(tooLong(problem) ? 107 : 101, `the value ${problem}`);
     const v = await this.ask(k, value);
     return jsonResponse({ value: GROUPS.includes(k) ? { [k]: v } : v });
   }
@@ -323,8 +371,8 @@ export class G2coreSerialBridge implements Simulator {
     if (typeof value === 'string') lines = value.split(/\r?\n/);
     else if (Array.isArray(value) && value.every((l) => typeof l === 'string')) lines = value as string[];
     else throw new G2Fail(101, 'value must be a string or an array of lines');
-    lines = lines.map((l) => l.trim()).filter((l) => l !== '');
-    if (lines.length === 0) throw new G2Fail(101, 'no lines to run');
+    // Numbered as sent: an empty line keeps its number, so a refusal names the line the user wrote.
+    if (lines.every((l) => l.trim() === '')) throw new G2Fail(101, 'no lines to run');
     if (lines.length > MAX_LINES) throw new G2Fail(10, `more than ${MAX_LINES} lines: upload a job`);
     const op = this.streamer.addOperation(value as string[] | string, lines);
     return jsonResponse(op.id, 201);

@@ -1,11 +1,17 @@
 import path from 'node:path';
 import { SerialPortMock } from 'serialport';
+import type { BoardSim } from './board-sim';
 import { afterEach, describe, expect, it } from 'vitest';
 import { g2coreFamily } from '../../src/controllers/g2core/family';
 import { consoleFetch, login, startGateway, tempDir, user, writeJson, type Running } from '../test-util';
 import { mockBoard, type MockBoard } from './test-board';
 import type { GatewayOptions } from '../context';
 import type { FamilyDescriptor } from '../../src/fleet/contract';
+
+/** The lines the board read, without the status requests that ask a quiet board whether it lives (the setup's sv and si first). */
+function boardRead(board: BoardSim): string[] {
+  return board.received.filter((l) => l !== '{"sr":null}');
+}
 
 /**
  * A serial g2core behind the whole gateway: the proxy routes `/machines/<id>/…` to the bridge as
@@ -104,7 +110,7 @@ describe('serial g2core through the gateway', () => {
         ((await (await req(gw, as.vera, 'GET', '/job/1')).json()) as { state: string }).state === 'done',
       'job done',
     );
-    expect(mb.board.received.slice(3)).toEqual(['G1 X1 F100', 'G1 X2', 'G1 X3']);
+    expect(boardRead(mb.board).slice(2)).toEqual(['G1 X1 F100', 'G1 X2', 'G1 X3']);
 
     // Settings are the supervisor's; so is the G-code console; so is the board reset.
     expect((await req(gw, as.otto, 'PUT', '/machine/x/vm', 100)).status).toBe(403);
@@ -118,14 +124,14 @@ describe('serial g2core through the gateway', () => {
     expect(mb.board.controls).toContain('\x18');
 
     // A cross-site request (no X-Shopdeck header) never reaches the board.
-    const before = mb.board.received.length;
+    const before = boardRead(mb.board).length;
     const forged = await fetch(`${gw.url}/machines/mill/operation`, {
       method: 'POST',
       headers: { cookie: as.sam, 'Content-Type': 'text/plain' },
       body: JSON.stringify({ optype: 'run', value: ['G0 X100'] }),
     });
     expect(forged.status).toBe(403);
-    expect(mb.board.received.length).toBe(before);
+    expect(boardRead(mb.board).length).toBe(before);
 
     // The commands are in the audit log with who sent them.
     const cmds = gw.gw.audit.all().filter((e) => e.type === 'command' && e.machine === 'mill');
@@ -137,6 +143,81 @@ describe('serial g2core through the gateway', () => {
         ['sam', 'POST', '/board/reset'],
       ]),
     );
+  });
+
+  it('a character whose byte is a control (U+0118 is ^X) is refused with 400 naming the line, in a job, MDI and a setting: nothing reaches the board', async () => {
+    const { gw, mb, as } = await setup();
+    await until(async () => (await req(gw, as.vera, 'GET', '/status_report')).status === 200, 'online');
+    await until(async () => boardRead(mb.board).length >= 2, 'the setup read');
+    const received = boardRead(mb.board).length;
+    // The operator's job that would reset the board (a supervisor-only action): not plain G-code,
+    // refused by the gateway's rule for jobs, the line named.
+    const op = await req(gw, as.otto, 'POST', '/job', { name: 'p.nc', gcode: 'G90\nG0 X1 \u0118' });
+    expect(op.status).toBe(403);
+    expect(((await op.json()) as { error: string }).error).toMatch(/line 2 .*outside printable ASCII/);
+    // A supervisor's is refused by the bridge, which checks the bytes it would write.
+    const job = await req(gw, as.sam, 'POST', '/job', { name: 'p.nc', gcode: 'G90\nG0 X1 \u0118' });
+    expect(job.status).toBe(400);
+    expect(await job.json()).toMatchObject({
+      status: { code: 101, additional_description: expect.stringMatching(/^line 2: .*U\+0118 .*\^X/) },
+    });
+    // The supervisor's MDI (kill) and setting ("~" cycle start) are refused the same way.
+    const mdi = await req(gw, as.sam, 'POST', '/operation', { optype: 'run', value: ['G0 X1 \u0104 Y1'] });
+    expect(mdi.status).toBe(400);
+    expect(JSON.stringify(await mdi.json())).toMatch(/line 1: .*\^D/);
+    expect((await req(gw, as.sam, 'PUT', '/machine/x/vm', '5\u017e')).status).toBe(400);
+    await new Promise((r) => setTimeout(r, 100));
+    expect(boardRead(mb.board).length).toBe(received);
+    expect(mb.board.controls).toEqual([]);
+    expect(mb.board.stat).toBe(1);
+  });
+
+  it("an operator's job of settings or JSON writes is refused with the line named, nothing written; a supervisor's runs; a plain multipart upload is the operator's", async () => {
+    const { gw, mb, as } = await setup();
+    await until(async () => (await req(gw, as.vera, 'GET', '/status_report')).status === 200, 'online');
+    await until(async () => boardRead(mb.board).length >= 2, 'the setup read');
+    const received = boardRead(mb.board).length;
+    for (const bad of ['G90\n$defa=1', 'G90\n{"xsn":0}', 'G90\nG10 L2 P1 X5', 'G90\nM100 ({"xvm":1})']) {
+      const r = await req(gw, as.otto, 'POST', '/job', { name: 'evil.nc', gcode: bad });
+      expect(r.status, bad).toBe(403);
+      const body = (await r.json()) as { error: string };
+      expect(body.error, bad).toMatch(
+        /^queue a job whose line 2 ".*" is .*needs the supervisor role \(otto is operator\)/,
+      );
+    }
+    // Multipart, as the page uploads a file.
+    const form = new FormData();
+    form.append('file', new Blob(['G90\n$defa=1\n']), 'evil.nc');
+    form.append('name', 'evil.nc');
+    const up = await consoleFetch(`${gw.url}/machines/mill/job`, {
+      method: 'POST',
+      headers: { cookie: as.otto },
+      body: form,
+    });
+    expect(up.status).toBe(403);
+    expect(((await up.json()) as { error: string }).error).toMatch(/line 2 "\$defa=1"/);
+    expect(((await (await req(gw, as.vera, 'GET', '/job')).json()) as unknown[]).length).toBe(0);
+    await new Promise((r) => setTimeout(r, 50));
+    expect(boardRead(mb.board).length).toBe(received);
+    const refused = gw.gw.audit.all().filter((e) => e.type === 'refused' && e.path === '/job');
+    expect(refused.map((e) => e.user)).toEqual(['otto', 'otto', 'otto', 'otto', 'otto']);
+
+    // The operator's plain file is queued and runs.
+    const plain = new FormData();
+    plain.append('file', new Blob(['G90\nG1 X1 F100\n']), 'ok.nc');
+    plain.append('name', 'ok.nc');
+    const ok = await consoleFetch(`${gw.url}/machines/mill/job`, {
+      method: 'POST',
+      headers: { cookie: as.otto },
+      body: plain,
+    });
+    expect(ok.status).toBe(201);
+    // The supervisor's settings job is queued, and an operator may start it (the upload was the approval).
+    const sup = await req(gw, as.sam, 'POST', '/job', { name: 'setup.nc', gcode: '{"xvm":5000}\nG90' });
+    expect(sup.status).toBe(201);
+    const id = String(await sup.json());
+    expect((await req(gw, as.otto, 'PUT', `/job/${id}`, { state: 'run' })).status).toBe(200);
+    await until(async () => mb.board.received.includes('{"xvm":5000}'), 'the supervisor job ran');
   });
 
   it('streams a 200-line job through the gateway with a hold, a resume and a kill: exact bytes, at most 4 lines in flight', async () => {
@@ -152,15 +233,15 @@ describe('serial g2core through the gateway', () => {
     await until(async () => (await job()).done >= 20, '20 lines');
     expect((await req(gw, as.otto, 'PUT', '/job/1', { state: 'pause' })).status).toBe(200);
     await until(async () => mb.board.stat === 6, 'held');
-    const held = mb.board.received.length;
+    const held = boardRead(mb.board).length;
     await new Promise((r) => setTimeout(r, 200));
-    expect(mb.board.received.length).toBeLessThanOrEqual(held + 4); // at most the lines in flight
+    expect(boardRead(mb.board).length).toBeLessThanOrEqual(held + 4); // at most the lines in flight
     expect((await req(gw, as.otto, 'PUT', '/job/1', { state: 'run' })).status).toBe(200);
     await until(async () => (await job()).done >= held + 10, '10 more lines');
     expect((await req(gw, as.otto, 'PUT', '/job/1', { state: 'kill' })).status).toBe(200);
     await until(async () => (await job()).state === 'killed', 'killed');
     expect(mb.board.controls).toEqual(['!', '~', '!', '%', '\x04']);
-    const read = mb.board.received.slice(3);
+    const read = boardRead(mb.board).slice(2);
     expect(read.length).toBeLessThan(200);
     expect(read).toEqual(lines.slice(0, read.length));
     expect(mb.board.maxPending).toBeLessThanOrEqual(4);
@@ -169,6 +250,47 @@ describe('serial g2core through the gateway', () => {
       .filter((e) => e.type === 'command' && e.path === '/job/1')
       .map((e) => e.user);
     expect(who).toEqual(['otto', 'otto', 'otto', 'otto']);
+  });
+
+  it('pages opened through the gateway during a job and during a hold read the machine at once; one resumes the job; the job ends done with every line once', async () => {
+    const { gw, mb, as } = await setup(10);
+    await until(async () => (await req(gw, as.vera, 'GET', '/status_report')).status === 200, 'online');
+    const lines = Array.from({ length: 150 }, (_, i) => `G1 X${(i % 30) + 1} Y${i} F1000`);
+    expect((await req(gw, as.otto, 'POST', '/job', { name: 'p.nc', gcode: lines.join('\n') })).status).toBe(
+      201,
+    );
+    expect((await req(gw, as.otto, 'PUT', '/job/1', { state: 'run' })).status).toBe(200);
+    await until(async () => mb.board.waiting > 0, 'lines waiting in the board (the planner full)');
+    for (let page = 0; page < 10; page++) {
+      const who = [as.vera, as.otto, as.sam][page % 3]!;
+      const [tree, x, sr] = await Promise.all([
+        req(gw, who, 'GET', '/machine'),
+        req(gw, who, 'GET', '/machine/x'),
+        req(gw, who, 'GET', '/status_report'),
+      ]);
+      expect([tree.status, x.status, sr.status]).toEqual([200, 200, 200]);
+    }
+    expect(((await (await req(gw, as.vera, 'GET', '/job/1')).json()) as { state: string }).state).toBe(
+      'running',
+    );
+    expect((await req(gw, as.otto, 'PUT', '/job/1', { state: 'pause' })).status).toBe(200);
+    await until(async () => mb.board.stat === 6, 'held');
+    await new Promise((r) => setTimeout(r, 300));
+    // A page opened during the hold: Hold at once, the settings readable, and Cycle start from it.
+    expect(await (await req(gw, as.vera, 'GET', '/status_report')).json()).toMatchObject({ stat: 6 });
+    expect((await req(gw, as.vera, 'GET', '/machine')).status).toBe(200);
+    expect((await req(gw, as.otto, 'PUT', '/job/1', { state: 'run' })).status).toBe(200);
+    await until(
+      async () =>
+        ((await (await req(gw, as.vera, 'GET', '/job/1')).json()) as { state: string }).state !== 'running',
+      'the job ended',
+    );
+    expect(await (await req(gw, as.vera, 'GET', '/job/1')).json()).toMatchObject({
+      state: 'done',
+      done: 150,
+    });
+    expect(mb.board.received.filter((l) => !l.startsWith('{'))).toEqual(lines);
+    expect(mb.board.maxPending).toBeLessThanOrEqual(4);
   });
 
   it('an unplugged board answers 503 with the reason at once, and the page sees it come back', async () => {
@@ -185,7 +307,7 @@ describe('serial g2core through the gateway', () => {
     mb.replug();
     await until(async () => (await req(gw, as.vera, 'GET', '/status_report')).status === 200, 'back online');
     // The jog sent while unplugged was never sent later.
-    expect(mb.board.received.filter((l) => l.startsWith('G91'))).toEqual([]);
+    expect(boardRead(mb.board).filter((l) => l.startsWith('G91'))).toEqual([]);
   });
 
   it('stuck in run: the machine page reads why, the watch raises an alarm, a supervisor resets the board', async () => {

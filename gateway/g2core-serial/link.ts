@@ -9,16 +9,41 @@ import {
   type BoardMessage,
   type Json,
   type JsonObject,
+  wireBytes,
 } from './protocol';
 
 /**
  * The gateway's one connection to a g2core/TinyG board on a serial port (issue 19): it owns the
  * port, reads lines, and writes with line-mode flow control (protocol-notes.json
- * `linemode_flow_control`): at most `window` lines in flight, one more per `{r}`. Single-character
- * controls (`!`, `~`, `%`, ^D, ^X, ENQ) are written at once, always between two whole lines,
- * and take no slot. Nothing is queued while the port is closed and nothing is replayed after a
- * reconnect: a request made then fails at once.
+ * `linemode_flow_control`). The board is modelled as the firmware is (g2core `xio.cpp`
+ * `_scanBuffer`, `controller.cpp` `_dispatch_control`): a JSON request (a line starting with `{`)
+ * is a control, answered at once, ahead of the G-code lines waiting in the board, with the
+ * planner full and throughout a hold; G-code lines are the queue. So there are two lanes:
+ * G-code lines, at most `window` in flight, one more per answer; JSON requests, at most
+ * `JSON_LANE` in flight, outside that window. Each `{r}` is matched to what it answers by its
+ * content, never by position across the two: a JSON answer names its key, a G-code line's
+ * answer names none (or only the echoed `gc`, `n`, `msg`) and answers the oldest G-code line.
+ * Single-character controls (`!`, `~`, `%`, ^D, ^X, ENQ) are written at once, always between
+ * two whole lines, and take no slot. Nothing is queued while the port is closed and nothing is
+ * replayed after a reconnect: a request made then fails at once.
  */
+
+/** JSON requests in flight at once (each is answered at once; this bounds the board's input buffer). */
+export const JSON_LANE = 4;
+
+/** Keys a G-code line's answer may carry (`js.echo_json_gcode_block`, line numbers, messages). */
+const GCODE_ANSWER_KEYS = new Set(['gc', 'n', 'msg']);
+
+/**
+ * The key a JSON line's answer names (`{"xvm":5000}` → `xvm`), lower-cased; null for a G-code
+ * line, and for `{"gc":"G0 X1"}`, which the board answers as G-code (`{"r":{}}`, the captures).
+ */
+export function jsonKeyOf(line: string): string | null {
+  if (!line.startsWith('{')) return null;
+  const m = /^\{\s*"?([A-Za-z0-9_]+)"?\s*:/.exec(line);
+  const k = m?.[1]?.toLowerCase() ?? '';
+  return GCODE_ANSWER_KEYS.has(k) ? null : k;
+}
 
 export interface PortInfo {
   path: string;
@@ -26,9 +51,9 @@ export interface PortInfo {
   productId?: string;
 }
 
-/** What an opened port offers the link. Writes are whole lines or single controls, in order. */
+/** What an opened port offers the link. Writes are whole lines or single controls, in order, as bytes. */
 export interface OpenPort {
-  write(data: string): void;
+  write(data: Buffer): void;
   close(): Promise<void>;
 }
 
@@ -63,6 +88,9 @@ export class LinkDown extends Error {
   }
 }
 
+/** A write refused by the last check before the port (a byte outside printable ASCII). */
+export class UnsafeBytes extends Error {}
+
 export interface Reply {
   r: JsonObject;
   status: number;
@@ -72,10 +100,12 @@ interface InFlight {
   line: string;
   /** The key a JSON request expects back (null for a G-code line). */
   key: string | null;
+  /** A JSON line (answered at once by the board): a job's is in flight alone. */
+  json?: boolean;
   done(reply: Reply | Error): void;
 }
 
-/** A G-code line offered by the streamer when a slot is free. */
+/** A line of an operation or job offered by the streamer when a slot is free. */
 export interface DataLine {
   line: string;
   done(reply: Reply | Error): void;
@@ -137,15 +167,24 @@ export class SerialLink {
   private port: OpenPort | null = null;
   private current: LinkState = { state: 'connecting' };
   private rx = '';
+  /** G-code lines (and a job's JSON lines) in flight, oldest first: the queue in the board. */
   private inFlight: InFlight[] = [];
+  /** JSON requests in flight: answered out of band. */
+  private jsonInFlight: InFlight[] = [];
+  /** JSON requests waiting for a place in their lane. */
   private urgent: InFlight[] = [];
   private retryTimer: unknown = null;
   private retryMs: number;
   private stopped = false;
   private generation = 0;
   private readonly listeners = new Set<LinkListener>();
-  /** The streamer's next line, pulled when a slot is free (null: none now). */
-  source: (() => DataLine | null) | null = null;
+  /**
+   * The streamer's next line, pulled when a slot is free (null: none now). `inFlight`: the lines
+   * in flight now (a job's JSON line waits until it is 0, so it cannot pass the lines before it).
+   */
+  source: ((inFlight: number) => DataLine | null) | null = null;
+  /** When the board last sent a line (any line): how the bridge knows it is alive. */
+  lastHeard = 0;
   /** The board's identity from its banner, if one was seen. */
   banner: JsonObject | null = null;
   /** The device actually opened (the resolved path of 'auto'). */
@@ -324,8 +363,9 @@ export class SerialLink {
 
   /** Fails everything in flight or waiting: never replayed. */
   private drop(why: string, reset = false): void {
-    const all = [...this.inFlight, ...this.urgent];
+    const all = [...this.inFlight, ...this.jsonInFlight, ...this.urgent];
     this.inFlight = [];
+    this.jsonInFlight = [];
     this.urgent = [];
     for (const f of all) f.done(new LinkDown(why, reset));
   }
@@ -343,6 +383,7 @@ export class SerialLink {
   }
 
   private onLine(line: string): void {
+    this.lastHeard = this.now();
     const m = parseBoardLine(line);
     if (m.type === 'banner') {
       this.banner = scalarsOf(m.info);
@@ -359,22 +400,57 @@ export class SerialLink {
     this.pump();
   }
 
+  /**
+   * An `{r}`, matched by its content. A JSON answer names its key: it answers the oldest request
+   * of that key (a JSON request, or a job's JSON line); it says nothing about the G-code lines
+   * waiting in the board, which the firmware answers later. An answer naming no key (or only
+   * what a G-code answer echoes) answers the oldest G-code line in flight; with none in flight it
+   * is stray (old builds answer `!` with one) and ignored, as is an answer nothing asked for.
+   */
   private onResponse(r: JsonObject, status: number): void {
-    if (this.inFlight.length === 0) return; // a stray {r} (old builds answer "!" with one)
-    // A JSON request's reply names its key: lines before it that never answered were flushed.
-    const keys = Object.keys(r).map((k) => k.toLowerCase());
-    let at = 0;
+    const keys = Object.keys(r)
+      .map((k) => k.toLowerCase())
+      .filter((k) => !GCODE_ANSWER_KEYS.has(k));
     if (keys.length > 0) {
-      const match = this.inFlight.findIndex((f) => f.key !== null && keys.includes(f.key.toLowerCase()));
-      if (match > 0) at = match;
+      const named = (f: InFlight): boolean => f.key !== null && keys.includes(f.key);
+      let lane = this.jsonInFlight;
+      let at = lane.findIndex(named);
+      if (at < 0) {
+        lane = this.inFlight;
+        at = lane.findIndex(named);
+      }
+      // A JSON syntax error answers `{"err":…}` without the key: the oldest JSON request.
+      if (at < 0 && keys.length === 1 && keys[0] === 'err' && this.jsonInFlight.length) {
+        lane = this.jsonInFlight;
+        at = 0;
+      }
+      if (at < 0) return;
+      const [f] = lane.splice(at, 1);
+      f?.done({ r, status });
+      return;
     }
-    const skipped = this.inFlight.splice(0, at);
-    for (const s of skipped) s.done(new LinkDown('no answer from the board (flushed)'));
-    const f = this.inFlight.shift();
-    f?.done({ r, status });
+    // TinyG answers an unknown name without naming it (`{"r":{},"f":[3,100,10]}`, the CNCjs
+    // capture): status 100 is a name only JSON has, so it answers the oldest JSON request.
+    if (status === 100) {
+      const lane = this.jsonInFlight.length ? this.jsonInFlight : this.inFlight;
+      const at = lane.findIndex((f) => f.key !== null);
+      if (at >= 0) {
+        lane.splice(at, 1)[0]?.done({ r, status });
+        return;
+      }
+    }
+    const at = this.inFlight.findIndex((f) => f.key === null);
+    if (at >= 0) {
+      const [f] = this.inFlight.splice(at, 1);
+      f?.done({ r, status });
+      return;
+    }
+    // No G-code line in flight: a refusal without a key answers the oldest JSON request; an empty
+    // OK answer is stray (old builds answer `!` with one) and ignored.
+    if (status !== 0 && this.jsonInFlight.length) this.jsonInFlight.shift()?.done({ r, status });
   }
 
-  /** Lines in flight are forgotten (after a flush they never answer): the window opens again. */
+  /** G-code lines in flight are forgotten (after a flush they never answer): the window opens again. */
   forgetInFlight(why: string): void {
     const gone = this.inFlight.filter((f) => f.key === null);
     this.inFlight = this.inFlight.filter((f) => f.key !== null);
@@ -388,33 +464,49 @@ export class SerialLink {
 
   private write(data: string): void {
     if (!this.port) throw new LinkDown('the board is not connected');
+    // The bytes that reach the board are checked, not the string: printable ASCII lines or one
+    // control. Whatever a check before this missed is refused here, and nothing is written.
+    const bytes = wireBytes(data);
+    if (typeof bytes === 'string') throw new UnsafeBytes(`not written to the board: ${bytes}`);
     this.written.push(data);
     if (this.written.length > 100_000) this.written.splice(0, 50_000);
-    this.port.write(data);
+    this.port.write(bytes);
   }
 
-  /** Sends what fits: JSON requests first, then the streamer's lines. */
+  /** Sends what fits in each lane: JSON requests (answered at once), then the streamer's lines. */
   pump(): void {
     if (!this.port) return;
+    while (this.jsonInFlight.length < JSON_LANE) {
+      const next = this.urgent.shift();
+      if (!next) break;
+      if (!this.send(next, this.jsonInFlight)) return;
+    }
     while (this.inFlight.length < this.window) {
-      const next = this.urgent.shift() ?? this.pullData();
+      // A job's JSON line is in flight alone: whatever answer comes is its own.
+      if (this.inFlight.some((f) => f.json)) return;
+      const next = this.pullData();
       if (!next) return;
-      this.inFlight.push(next);
+      if (!this.send(next, this.inFlight)) return;
       this.maxInFlight = Math.max(this.maxInFlight, this.inFlight.length);
-      try {
-        this.write(next.line + '\n');
-      } catch (e) {
-        this.inFlight.pop();
-        next.done(e instanceof Error ? e : new Error(String(e)));
-        return;
-      }
+    }
+  }
+
+  private send(next: InFlight, lane: InFlight[]): boolean {
+    lane.push(next);
+    try {
+      this.write(next.line + '\n');
+      return true;
+    } catch (e) {
+      lane.splice(lane.indexOf(next), 1);
+      next.done(e instanceof Error ? e : new Error(String(e)));
+      return false;
     }
   }
 
   private pullData(): InFlight | null {
     if (!this.online) return null;
-    const d = this.source?.();
-    return d ? { line: d.line, key: null, done: d.done } : null;
+    const d = this.source?.(this.inFlight.length);
+    return d ? { line: d.line, key: jsonKeyOf(d.line), json: d.line.startsWith('{'), done: d.done } : null;
   }
 
   /**
@@ -427,8 +519,8 @@ export class SerialLink {
       const timer = this.st(() => {
         const i = this.urgent.indexOf(entry);
         if (i >= 0) this.urgent.splice(i, 1);
-        const j = this.inFlight.indexOf(entry);
-        if (j >= 0) this.inFlight.splice(j, 1);
+        const j = this.jsonInFlight.indexOf(entry);
+        if (j >= 0) this.jsonInFlight.splice(j, 1);
         settle(new LinkDown(`no answer from the board to ${key} within ${this.timeoutMs / 1000} s`));
         this.pump();
       }, this.timeoutMs);
@@ -440,7 +532,12 @@ export class SerialLink {
         if (r instanceof Error) reject(r);
         else resolve(r);
       };
-      const entry: InFlight = { line: jsonLine(key, value), key, done: settle };
+      const entry: InFlight = {
+        line: jsonLine(key, value),
+        key: key.toLowerCase(),
+        json: true,
+        done: settle,
+      };
       this.urgent.push(entry);
       this.pump();
     });

@@ -30,7 +30,7 @@ export function streamOpener(make: Make, list: () => Promise<PortInfo[]>): PortO
           });
           resolve({
             write: (data) => {
-              port.write(data, 'latin1');
+              port.write(data);
             },
             close: () =>
               new Promise<void>((done) => {

@@ -2,7 +2,7 @@ import { readdirSync, readFileSync } from 'node:fs';
 import path from 'node:path';
 import { describe, expect, it } from 'vitest';
 import { BoardSim, parseRelaxed } from './board-sim';
-import { lineProblem, parseBoardLine, sendableLine, type BoardMessage } from './protocol';
+import { lineProblem, parseBoardLine, sendableLine, wireBytes, type BoardMessage } from './protocol';
 import { pickBoardPort, classifyOpenError } from './link';
 
 /** The wire protocol against the captures in ../shared/fixtures/g2core (SOURCES.md). */
@@ -73,6 +73,20 @@ describe('g2core serial protocol', () => {
     expect(lineProblem('G1 X' + '1'.repeat(249))).toMatch(/254 bytes/);
     expect(lineProblem('G1 X1 !')).toMatch(/at once/);
     expect(lineProblem('G1\u0018X1')).toMatch(/control/);
+    // Checked as the bytes written (one per character): U+0118 would be ^X, U+0121 "!", U+010A "\n".
+    expect(lineProblem('G1 X1 \u0118')).toMatch(/U\+0118 \(the board would read \^X, a board reset\)/);
+    expect(lineProblem('G1 X1 \u0104')).toMatch(/\^D, a job kill/);
+    expect(lineProblem('G1 X1 \u0121')).toMatch(/"!"/);
+    expect(lineProblem('G1 X1 \u010a')).toMatch(/a line break/);
+    expect(lineProblem('G1 X1 \u00e9')).toMatch(/outside printable ASCII/);
+    expect(lineProblem('G1 X1 \u{1f600}')).toMatch(/outside printable ASCII/);
+    expect(lineProblem('G1\tX1')).toBeNull();
+    expect(wireBytes('G1\tX1\n')).toEqual(Buffer.from('G1\tX1\n'));
+    expect(wireBytes('!')).toEqual(Buffer.from([0x21]));
+    expect(wireBytes('\x18')).toEqual(Buffer.from([0x18]));
+    expect(wireBytes('G1 \u0118\n')).toMatch(/\^X/);
+    expect(wireBytes('G1 X1')).toBe('not a whole line');
+    expect(wireBytes('G1 \x18 X1\n')).toMatch(/control byte|\^X/);
     expect(sendableLine('G1 X1 (fast!) ; note %')).toBe('G1 X1');
     expect(sendableLine('%')).toBeNull();
     expect(sendableLine('(only a comment)')).toBeNull();
@@ -146,7 +160,7 @@ describe('simulated board (quirks from the research notes)', () => {
     expect(out.at(-1)).toBe('{"ack":true}');
     b.receive('{spe:n}\n');
     expect(out.slice(-2)).toEqual([
-      '{"r":{"spe":null},"f":[1,100,8]}',
+      '{"r":{"spe":null},"f":[1,100,9]}', // 101.03: the line's length + 2, as the recorded sessions
       '{"err":{"code":100,"msg":"Unrecognized command or config name"}}',
     ]);
     b.receive('{sv:1}\nG1 X1\n\x04');

@@ -101,18 +101,70 @@ export function parseBoardLine(line: string): BoardMessage {
 }
 
 /**
- * Why a line may not be sent, or null: control characters and `!`, `~`, `%` would act at once
- * (a `!` in a value is a feedhold), and a line of 254 bytes or more overruns the firmware's
- * line buffer.
+ * What a byte outside printable ASCII would be on the wire: the link writes one byte per
+ * character (latin1), so U+0118 "Ę" is 0x18 (^X, reset), U+0104 0x04 (^D, kill), U+0121 "!".
+ */
+function wireByteWords(ch: string): string {
+  const cp = ch.codePointAt(0) ?? 0;
+  const hex = `U+${cp.toString(16).toUpperCase().padStart(4, '0')}`;
+  if (cp > 0xffff) return `${hex} (not one byte)`;
+  const b = cp & 0xff;
+  const as =
+    b === 0x18
+      ? '^X, a board reset'
+      : b === 0x04
+        ? '^D, a job kill'
+        : b === 0x0a || b === 0x0d
+          ? 'a line break'
+          : b < 0x20 || b === 0x7f
+            ? `control byte 0x${b.toString(16).padStart(2, '0')}`
+            : b >= 0x80
+              ? `byte 0x${b.toString(16)}`
+              : `"${String.fromCharCode(b)}"`;
+  return cp < 0x80 ? `${hex} (${as})` : `${hex} (the board would read ${as})`;
+}
+
+/** Printable ASCII and TAB: the only bytes a line may hold (a line is written one byte per character). */
+const NOT_PRINTABLE = /[^\t\x20-\x7e]/u;
+
+/**
+ * Why a line may not be sent, or null. The line is checked as the bytes that will be written:
+ * only printable ASCII and TAB (anything else is written as some other byte: U+0118 would reach
+ * the board as ^X), no `!`, `~`, `%` (the board acts on them at once: a `!` in a value is a
+ * feedhold), and fewer than 254 bytes with the terminator (the firmware's line buffer).
  */
 export function lineProblem(line: string): string | null {
-  // eslint-disable-next-line no-control-regex
-  if (/[\x00-\x1f\x7f]/.test(line)) return 'contains a control character';
+  const bad = NOT_PRINTABLE.exec(line);
+  if (bad) {
+    const cp = bad[0].codePointAt(0) ?? 0;
+    return cp < 0x20 || cp === 0x7f
+      ? `contains a control character (${wireByteWords(bad[0])})`
+      : `contains a character outside printable ASCII, ${wireByteWords(bad[0])}`;
+  }
   if (/[!~%]/.test(line)) return 'contains "!", "~" or "%", which the board acts on at once';
-  const bytes = Buffer.byteLength(line, 'utf8') + 1;
+  const bytes = line.length + 1;
   if (bytes >= MAX_LINE_BYTES)
     return `${bytes} bytes with its terminator (the board takes at most ${MAX_LINE_BYTES - 1})`;
   return null;
+}
+
+/** True for `lineProblem`'s "too long" answer (413/107), false for a refused character (400/101). */
+export function tooLong(problem: string): boolean {
+  return problem.includes(' bytes with its terminator');
+}
+
+/**
+ * The bytes of one write, or why it may not be written: a whole line (printable ASCII and TAB,
+ * then "\n"), or one single-character control. The last check before the port: whatever the
+ * checks before it missed, no other byte reaches the board.
+ */
+export function wireBytes(data: string): Buffer | string {
+  if (data.length === 1 && CONTROL_BYTES.has(data.charCodeAt(0))) return Buffer.from(data, 'latin1');
+  if (!data.endsWith('\n')) return 'not a whole line';
+  const body = data.slice(0, -1);
+  const bad = NOT_PRINTABLE.exec(body);
+  if (bad) return `a character outside printable ASCII, ${wireByteWords(bad[0])}`;
+  return Buffer.from(data, 'ascii');
 }
 
 /**

@@ -1,7 +1,15 @@
 import { statusText } from '../../src/controllers/g2core/codes';
 import { G2Fail } from '../../src/controllers/g2core/sim/fail';
 import { pruneEndedJobs } from '../../src/controllers/g2core/sim/job-wire';
-import { CTRL, MAX_REPORT_KEYS, lineProblem, scalarsOf, sendableLine, type JsonObject } from './protocol';
+import {
+  CTRL,
+  MAX_REPORT_KEYS,
+  lineProblem,
+  scalarsOf,
+  sendableLine,
+  tooLong,
+  type JsonObject,
+} from './protocol';
 import { LinkDown, type DataLine, type Reply, type SerialLink } from './link';
 
 /**
@@ -98,7 +106,7 @@ export class Streamer {
   stuck: { since: number; line: number } | null = null;
 
   constructor(private readonly o: StreamerOptions) {
-    o.link.source = () => this.nextLine();
+    o.link.source = (inFlight) => this.nextLine(inFlight);
     o.link.listen({
       message: (m) => {
         this.heard();
@@ -185,9 +193,13 @@ export class Streamer {
       this.finish(op, statusError(stat === 2 ? 204 : stat === 12 ? 205 : 206, 'the machine stopped (alarm)'));
   }
 
-  private nextLine(): DataLine | null {
+  private nextLine(inFlight: number): DataLine | null {
     const op = this.current();
     if (!op || op.state !== 'run' || this.stuck || op.sent >= op.lines.length) return null;
+    // The board answers a JSON line at once, ahead of the lines waiting in it: it is sent only
+    // when every line before it has been answered, so it cannot pass them, and alone (the link
+    // sends nothing after it until it is answered).
+    if (inFlight > 0 && op.lines[op.sent]!.startsWith('{')) return null;
     const i = op.sent++;
     if (this.watchdog === null) this.armWatchdog();
     return { line: op.lines[i]!, done: (reply) => this.lineDone(op, i, reply) };
@@ -286,7 +298,7 @@ export class Streamer {
       const s = sendableLine(l);
       if (s === null) return;
       const p = lineProblem(s);
-      if (p) throw new G2Fail(p.includes('bytes') ? 107 : 101, `line ${i + 1}: ${p}`);
+      if (p) throw new G2Fail(tooLong(p) ? 107 : 101, `line ${i + 1}: ${p}`);
       out.push(s);
     });
     if (out.length === 0) throw new G2Fail(101, 'no G-code lines to run');

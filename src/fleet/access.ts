@@ -13,6 +13,8 @@ export interface AccessRequest {
   query: URLSearchParams;
   /** Request body as text, for families that classify by content (Duet `POST /machine/code`). */
   body?: string;
+  /** The body's Content-Type, when the body is given (a multipart upload needs its boundary). */
+  contentType?: string;
   /** True for a WebSocket upgrade. */
   websocket?: boolean;
 }

@@ -39,6 +39,8 @@ export interface FamilyDeclaration {
   access: AccessPolicy;
   /** Requests whose body the gateway must read to classify them. */
   accessNeedsBody?: BodyNeeded;
+  /** The most of such a body the gateway reads (bytes), when more than its default (g2core's job upload). */
+  accessBodyLimit?: (method: string, path: string) => number | undefined;
   gateway?: GatewayHints;
 }
 

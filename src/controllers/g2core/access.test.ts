@@ -1,7 +1,14 @@
 import { describe, expect, it } from 'vitest';
 import { splitTarget } from '../../../gateway/paths';
 import type { AccessRequest } from '../../fleet/access';
-import { canonicalKey, g2coreAccess, g2coreAccessNeedsBody, isJogOrHomeLine } from './access';
+import {
+  canonicalKey,
+  g2coreAccess,
+  g2coreAccessBodyLimit,
+  g2coreAccessNeedsBody,
+  isJogOrHomeLine,
+  operatorJobLineProblem,
+} from './access';
 import { jogLines } from './session';
 
 const req = (method: string, path: string, body?: unknown) => ({
@@ -205,7 +212,13 @@ describe('g2core access policy', () => {
     expect(g2coreAccess(req('PUT', '/operation/42', { opstate: 'kill' }))).toMatchObject({
       role: 'operator',
     });
-    expect(g2coreAccess(req('POST', '/job'))).toMatchObject({ role: 'operator' });
+    expect(g2coreAccess(req('POST', '/job', { name: 'a.nc', gcode: 'G0 X1' }))).toMatchObject({
+      role: 'operator',
+    });
+    // The gateway reads a job's body (a whole job) to classify it.
+    expect(g2coreAccessNeedsBody('POST', '/job')).toBe(true);
+    expect(g2coreAccessBodyLimit('POST', '/job')).toBeGreaterThan(8 * 1024 * 1024);
+    expect(g2coreAccessBodyLimit('POST', '/operation')).toBeUndefined();
     expect(g2coreAccess(req('PUT', '/job/3'))).toMatchObject({ role: 'operator' });
     expect(g2coreAccess(req('DELETE', '/job/3'))).toMatchObject({ role: 'supervisor' });
     expect(g2coreAccess(req('DELETE', '/Job/3/'))).toMatchObject({ role: 'supervisor' });
@@ -215,5 +228,105 @@ describe('g2core access policy', () => {
       label: expect.stringMatching(/reset the board/),
     });
     expect(g2coreAccess(req('POST', '/firmware'))).toMatchObject({ role: 'supervisor' });
+  });
+});
+
+describe("g2core: what an operator's job may hold", () => {
+  const job = (gcode: string): AccessRequest => ({
+    method: 'POST',
+    path: '/job',
+    query: new URLSearchParams(),
+    body: JSON.stringify({ name: 'p.nc', gcode }),
+    contentType: 'application/json',
+  });
+
+  it("plain G-code is the operator's; settings, JSON and stored-state codes are the supervisor's, the line named", () => {
+    const cam = [
+      '%',
+      '(T1 D=6.35 - flat end mill; 100% feed!)',
+      'N10 G90 G94 G17 G21',
+      'G54',
+      'M6 T1',
+      'S12000 M3',
+      'G0 X0 Y0',
+      'G1 Z-1.5 F300 ; plunge',
+      'G2 X10 Y10 I5 J5',
+      'g03x0y0r5',
+      'G4 P0.5',
+      'G38.2 Z-10 F50',
+      'M9 M5',
+      '',
+      'G28',
+      'M30',
+      '%',
+    ].join('\r\n');
+    expect(g2coreAccess(job(cam))).toMatchObject({ role: 'operator' });
+    for (const [line, why] of [
+      ['$defa=1', /settings write/],
+      ['$xvm=99999', /settings write/],
+      ['{"xsn":0}', /JSON/],
+      ['{xvm:null}', /JSON/],
+      ['G10 L2 P1 X0', /G10/],
+      ['G28.1', /G28\.1/],
+      ['G28.3 X0', /G28\.3/],
+      ['M100 ({"xvm":1})', /M100/],
+      ['M101', /M101/],
+      ['M50 P0', /M50/],
+      ['?', /control or text-mode/],
+      ['!', /control/],
+      ['H', /not plain G-code/],
+      ['G0 X1 \u0118', /outside printable ASCII/],
+      ['G0 X1 E5', /word E/],
+      ['G0 X1 (a (nested) comment)', /comment/],
+    ] as const) {
+      const d = g2coreAccess(job(`G90\nG0 X1\n${line}\nG0 X2`));
+      expect(d.role, line).toBe('supervisor');
+      expect(d.label, line).toContain(`line 3 ${JSON.stringify(line.trim())}`);
+      expect(d.label, line).toMatch(why);
+    }
+    expect(operatorJobLineProblem('G1 X1')).toBeNull();
+    expect(operatorJobLineProblem('G1 X1.5 Y.5 Z-2.')).toBeNull();
+    // A long line is refused before any pattern runs on it (no quadratic work on a hostile job).
+    expect(operatorJobLineProblem('G1 X' + '1'.repeat(300))).toMatch(/longer than 255/);
+    const t0 = performance.now();
+    const d = g2coreAccess(job('G1 X' + '1'.repeat(4_000_000) + '!'));
+    expect(d.role).toBe('supervisor');
+    expect(performance.now() - t0).toBeLessThan(5000); // generous: a quadratic pattern takes hours
+  });
+
+  it("a multipart upload is read as its parsers read it; an odd one is the supervisor's", () => {
+    const b = '----formdata-undici-0123';
+    const part = (name: string, content: string, filename = true): string =>
+      `--${b}\r\nContent-Disposition: form-data; name="${name}"${filename ? '; filename="p.nc"' : ''}\r\nContent-Type: application/octet-stream\r\n\r\n${content}\r\n`;
+    const up = (body: string, type = `multipart/form-data; boundary=${b}`): AccessRequest => ({
+      method: 'POST',
+      path: '/job',
+      query: new URLSearchParams(),
+      body,
+      contentType: type,
+    });
+    const ok = part('file', 'G0 X1\nG1 Y2 F100') + part('name', 'p.nc', false) + `--${b}--\r\n`;
+    expect(g2coreAccess(up(ok))).toMatchObject({ role: 'operator' });
+    const bad = part('file', 'G0 X1\n$defa=1') + `--${b}--\r\n`;
+    expect(g2coreAccess(up(bad)).label).toMatch(/line 2 "\$defa=1" is a settings write/);
+    // Two file parts, a preamble, an unknown part or header, another boundary: not classified.
+    for (const odd of [
+      part('file', 'G0 X1') + part('file', '$defa=1') + `--${b}--`,
+      `preamble\r\n${ok}`,
+      part('file', 'G0 X1') + part('gcode', '$defa=1') + `--${b}--`,
+      part('file', 'G0 X1').replace('Content-Type', 'X-Other') + `--${b}--`,
+      part('file', 'G0 X1'),
+    ])
+      expect(g2coreAccess(up(odd)).role).toBe('supervisor');
+    expect(g2coreAccess(up(ok, `multipart/form-data; boundary=other`)).role).toBe('supervisor');
+    expect(g2coreAccess(up(ok, `multipart/form-data; boundary=${b}; charset=x`)).role).toBe('supervisor');
+    // JSON with other keys, a repeated key, or no gcode: not classified.
+    for (const body of [
+      '{"name":"a","gcode":"G0 X1","file":"$defa=1"}',
+      '{"gcode":"$defa=1","gcode":"G0 X1"}',
+      '{"name":"a"}',
+      'G0 X1',
+    ])
+      expect(g2coreAccess({ ...job(''), body }).role, body).toBe('supervisor');
   });
 });

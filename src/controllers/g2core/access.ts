@@ -13,11 +13,12 @@ import {
  *
  *  viewer      every GET that only reads (version, status reports, machine tree, operations, jobs)
  *  operator    job controls: pause / resume / kill operations and jobs, queue and start jobs,
- *              upload job files; alarm clear (`GET /machine/clear`, a GET that is a command);
+ *              upload job files of plain G-code (`operatorJobLineProblem`: motion, spindle,
+ *              coolant, tool change, program stops; no `$` settings, no JSON, no G10/M100…); alarm clear (`GET /machine/clear`, a GET that is a command);
  *              jog and home (POST /operation whose lines are all jog or G28.2 lines, see
  *              `isJogOrHomeLine`: operators stand at the machine); feed/spindle overrides
  *              (`PUT /machine/mfo|mto|sso` with a number)
- *  supervisor  settings (`PUT /machine/…`), the G-code console (any other POST /operation),
+ *  supervisor  settings (`PUT /machine/…`), jobs with any other line (the refusal names it), the G-code console (any other POST /operation),
  *              triggering alarm/shutdown/panic (`GET /machine/alarm|shutd|panic`), deleting jobs,
  *              the hard reset of a serial board (`POST /board/reset`, gateway/g2core-serial/),
  *              anything undeclared that is not a GET, WebSocket upgrades (g2core has none).
@@ -270,6 +271,148 @@ function operationDecision(body: string | undefined): AccessDecision {
   return (lines as string[]).some((l) => /G28\.2/i.test(l)) ? operator('home axes') : operator('jog');
 }
 
+// ------------------------------------------------------------------ an operator's job
+
+/**
+ * G and M codes an operator's job may hold: motion, dwell, planes, units, the work offsets in
+ * use (not stored ones), going to the stored positions, probing, path and distance modes, the
+ * spindle, coolant, tool change and program stops. Not: `G10` and `G28.1`/`G30.1` (they write
+ * offsets and positions the board keeps), `G28.3` (sets the machine position), `M48`–`M51`
+ * (override enables), `M100`/`M101` (JSON inside G-code), and any code not named here.
+ */
+const JOB_G = new Set(
+  '0 1 2 3 4 17 18 19 20 21 28 28.2 30 38.2 38.3 38.4 38.5 40 49 53 54 55 56 57 58 59 59.1 59.2 59.3 61 61.1 64 80 90 90.1 91 91.1 92 92.1 92.2 92.3 93 94'.split(
+    ' ',
+  ),
+);
+const JOB_M = new Set('0 1 2 3 4 5 6 7 8 9 30 60'.split(' '));
+/** The longest job line an operator's job may hold (the firmware's line buffer is 254 bytes). */
+const MAX_JOB_LINE = 255;
+/** Word letters besides G and M: axes, arc centres and radius, feed, speed, tool, dwell, line numbers. */
+const JOB_WORDS = new Set('ABCFIJKNPRSTUVWXYZ'.split(''));
+
+/**
+ * Why a line of a job needs a supervisor, or null when an operator's job may hold it: plain
+ * G-code only, in printable ASCII. Settings writes (`$…`), JSON (`{…}`), text-mode commands
+ * (`?`, `H`), single-character controls and any code outside the lists above need a supervisor.
+ * A line is judged as the controller would read it (a comment is allowed, its text is not run).
+ */
+export function operatorJobLineProblem(line: string): string | null {
+  if (/[^\t\x20-\x7e]/.test(line)) return 'a character outside printable ASCII';
+  // The firmware reads at most 254 bytes a line; the patterns below run on short lines only.
+  if (line.length > MAX_JOB_LINE) return `a line longer than ${MAX_JOB_LINE} characters`;
+  const t = line.trim();
+  if (t === '' || t === '%') return null;
+  if (t.startsWith('$')) return 'a settings write or text-mode command ($)';
+  if (t.startsWith('{')) return 'a JSON command ({…})';
+  if (/^[?!~%]/.test(t)) return `a control or text-mode command (${t[0] ?? ''})`;
+  let code = t.replace(/\([^()]*\)/g, ' ');
+  if (/[()]/.test(code)) return 'an unbalanced or nested comment';
+  code = code.replace(/;.*$/, '').replace(/[ \t]/g, '').toUpperCase();
+  const words = /^(?:[A-Z][-+]?(?:\d+(?:\.\d*)?|\.\d+))*$/.test(code)
+    ? [...code.matchAll(/([A-Z])([-+]?(?:\d+(?:\.\d*)?|\.\d+))/g)]
+    : null;
+  if (!words) return 'not plain G-code';
+  for (const [, letter = '', num = ''] of words) {
+    if (letter === 'G' || letter === 'M') {
+      const n = String(Number(num));
+      if (!(letter === 'G' ? JOB_G : JOB_M).has(n)) return `${letter}${n}, not plain motion`;
+    } else if (!JOB_WORDS.has(letter)) return `the word ${letter}, not plain motion`;
+  }
+  return null;
+}
+
+/** The first line of a job an operator may not queue, with its number, or null. */
+function jobTextDecision(text: string): AccessDecision {
+  const lines = text.split(/\r\n|\r|\n/);
+  for (let i = 0; i < lines.length; i++) {
+    const why = operatorJobLineProblem(lines[i] ?? '');
+    if (why)
+      return supervisor(
+        `queue a job whose line ${i + 1} ${JSON.stringify((lines[i] ?? '').trim().slice(0, 60))} is ${why} (an operator's job holds plain G-code only)`,
+      );
+  }
+  return operator('queue a job (upload)');
+}
+
+/**
+ * The job file of a `multipart/form-data` upload, or null when the upload is not in the plain
+ * form every parser reads alike: one boundary parameter, no preamble or epilogue, parts with only
+ * Content-Disposition (form-data, quoted name and filename) and Content-Type headers, exactly one
+ * `file` part and at most one `name` part. Anything else is not classified (a supervisor's).
+ */
+function multipartJobFile(contentType: string, body: string): string | null {
+  const m = /^multipart\/form-data\s*;\s*boundary=("?)([0-9A-Za-z'()+_,\-./:=?]{1,70})\1\s*$/i.exec(
+    contentType.trim(),
+  );
+  const b = m?.[2];
+  if (!b) return null;
+  const delim = `--${b}`;
+  if (!body.startsWith(`${delim}\r\n`)) return null;
+  const segs = body.slice(delim.length).split(`\r\n${delim}`);
+  const last = segs.pop();
+  if (last !== '--' && last !== '--\r\n') return null;
+  const seen = new Map<string, string>();
+  for (const seg of segs) {
+    if (!seg.startsWith('\r\n')) return null;
+    const at = seg.indexOf('\r\n\r\n', 2);
+    if (at < 0) return null;
+    const headers = seg.slice(2, at).split('\r\n');
+    const content = seg.slice(at + 4);
+    let name: string | null = null;
+    const names = new Set<string>();
+    for (const h of headers) {
+      const hm = /^([A-Za-z-]+):[ \t]*(.*)$/.exec(h);
+      const hn = hm?.[1]?.toLowerCase();
+      if (!hm || !hn || names.has(hn)) return null;
+      names.add(hn);
+      if (hn === 'content-disposition') {
+        const d = /^form-data((?:;[ \t]*(?:name|filename)="[^"\\\r\n]*")+)[ \t]*$/i.exec(hm[2] ?? '');
+        if (!d) return null;
+        const params = [...(d[1] ?? '').matchAll(/(name|filename)="([^"]*)"/gi)].map((x) => [
+          (x[1] ?? '').toLowerCase(),
+          x[2] ?? '',
+        ]);
+        if (new Set(params.map((x) => x[0])).size !== params.length) return null;
+        name = params.find((x) => x[0] === 'name')?.[1] ?? null;
+      } else if (hn !== 'content-type') return null;
+    }
+    if ((name !== 'file' && name !== 'name') || seen.has(name)) return null;
+    seen.set(name, content);
+  }
+  return seen.get('file') ?? null;
+}
+
+/**
+ * `POST /job`, classified by its content: an operator may queue a job of plain G-code
+ * (`operatorJobLineProblem`); a job with any other line (a setting `$defa=1`, JSON `{"xsn":0}`,
+ * `G10`, `M100`…) is a supervisor's, the refusal naming the line. The body is JSON
+ * `{"name","gcode"}` or a plain multipart upload; a body in any other form is a supervisor's.
+ */
+function jobDecision(body: string | undefined, contentType: string | undefined): AccessDecision {
+  const odd = supervisor(
+    'queue a job whose upload is not plain JSON {"name","gcode"} or a plain multipart file',
+  );
+  if (!body) return odd;
+  if ((contentType ?? '').toLowerCase().includes('multipart/')) {
+    const file = multipartJobFile(contentType ?? '', body);
+    return file === null ? odd : jobTextDecision(file);
+  }
+  let parsed: unknown;
+  try {
+    parsed = JSON.parse(body);
+  } catch {
+    return odd;
+  }
+  if (typeof parsed !== 'object' || parsed === null || Array.isArray(parsed) || repeatsKeys(body)) return odd;
+  if (!Object.keys(parsed).every((k) => k === 'name' || k === 'gcode')) return odd;
+  const { gcode } = parsed as { gcode?: unknown };
+  return typeof gcode === 'string' ? jobTextDecision(gcode) : odd;
+}
+
+/** The most a `POST /job` body may be for the gateway to read it (a job of 8 MiB, multipart's headers). */
+export const MAX_JOB_UPLOAD = 8 * 1024 * 1024 + 64 * 1024;
+
 export const g2coreAccess: AccessPolicy = (req) => {
   const m = req.method.toUpperCase();
   if (req.websocket) return supervisor('open a WebSocket (g2core has none: the server would see a GET)');
@@ -286,7 +429,7 @@ export const g2coreAccess: AccessPolicy = (req) => {
   if (m === 'POST' && top === 'operation' && n === 1) return operationDecision(req.body);
   if (m === 'PUT' && top === 'operation' && n === 2 && id)
     return operator('pause, resume or kill an operation');
-  if (m === 'POST' && top === 'job' && n === 1) return operator('queue a job (upload)');
+  if (m === 'POST' && top === 'job' && n === 1) return jobDecision(req.body, req.contentType);
   if (m === 'PUT' && top === 'job' && n === 2 && id) return operator('start, pause, kill or reorder a job');
   if (m === 'DELETE' && top === 'job' && n === 2 && id) return supervisor('delete a job');
   // A serial board's hard reset (^X), served by the gateway's bridge (gateway/g2core-serial/).
@@ -296,14 +439,23 @@ export const g2coreAccess: AccessPolicy = (req) => {
 };
 
 /**
- * The gateway reads the body of: POST /operation (jog/home or console), a PUT of an override (a
+ * The gateway reads the body of: POST /operation (jog/home or console), POST /job (an operator's
+ * job holds plain G-code only; up to `MAX_JOB_UPLOAD`, see `g2coreAccessBodyLimit`), a PUT of an override (a
  * number, or something more), and every GET ('viewer': a GET with a body is not a read).
  */
 export const g2coreAccessNeedsBody: BodyNeeded = (method, path) => {
   const m = method.toUpperCase();
   if (m === 'GET' || m === 'HEAD') return 'viewer';
   const t = target(path);
-  if (m === 'POST') return t.segs.length === 1 && t.segs[0] === 'operation';
+  if (m === 'POST') return t.segs.length === 1 && (t.segs[0] === 'operation' || t.segs[0] === 'job');
   if (m === 'PUT') return overrideKey(t) !== null;
   return false;
+};
+
+/** How much of a body the gateway reads to classify it: a whole job for `POST /job`. */
+export const g2coreAccessBodyLimit = (method: string, path: string): number | undefined => {
+  const t = target(path);
+  return method.toUpperCase() === 'POST' && t.segs.length === 1 && t.segs[0] === 'job'
+    ? MAX_JOB_UPLOAD
+    : undefined;
 };

@@ -1,5 +1,5 @@
 import type { FamilyDeclaration } from '../../fleet/contract';
-import { g2coreAccess, g2coreAccessNeedsBody } from './access';
+import { g2coreAccess, g2coreAccessBodyLimit, g2coreAccessNeedsBody } from './access';
 import { g2coreSharing } from './sharing';
 
 /**
@@ -12,5 +12,6 @@ export const g2coreDeclaration: FamilyDeclaration = {
   label: 'g2core CNC',
   access: g2coreAccess,
   accessNeedsBody: g2coreAccessNeedsBody,
+  accessBodyLimit: g2coreAccessBodyLimit,
   gateway: { sharing: g2coreSharing },
 };
