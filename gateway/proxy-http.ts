@@ -24,7 +24,7 @@ import type { GatewayContext, Verdict } from './context';
 import { crossSiteProblem } from './csrf';
 import type { AccessDecision } from '../src/fleet/access';
 import { unreachableReason } from './log';
-import { captureAnswer } from './upstream-http';
+import { AnswerTooLarge, captureAnswer } from './upstream-http';
 
 const MAX_CLASSIFY_BODY = 1024 * 1024;
 const MAX_SIM_BODY = 64 * 1024 * 1024;
@@ -785,21 +785,33 @@ export function createHttpProxy(ctx: GatewayContext) {
     rest: string,
     browserHeaders: Record<string, string>,
     cap: number,
+    /** The page gave up or its socket closed: the read is abandoned (its upstream slot freed). */
+    signal?: AbortSignal,
+    /** Each chunk of the answer as it is gathered: false refuses it (the answer is too large). */
+    take?: (bytes: number) => boolean,
   ): Promise<SocketReadAnswer> {
-    const { res, answer } = captureAnswer(cap);
+    const { res, answer } = captureAnswer(cap, take);
+    const abandon = (): void => {
+      if (!res.writableFinished) res.destroy();
+    };
+    if (signal?.aborted) abandon();
+    signal?.addEventListener('abort', abandon, { once: true });
     const settled = async (): Promise<SocketReadAnswer> => {
       try {
         const a = await answer;
         return { status: a.status, headers: a.headers, body: a.body };
       } catch (e) {
-        // Larger than the socket takes, or cut. The controller was asked already: the page is told
-        // it failed, never sent to ask again (a read may be consumed, as RepRapFirmware's rr_reply).
+        if (e instanceof AnswerTooLarge) return { fallback: e.message, tooLarge: true };
+        // Cut. The controller was asked already: the page is told it failed, never sent to ask
+        // again (a read may be consumed, as RepRapFirmware's rr_reply).
         const why = e instanceof Error ? e.message : String(e);
         return {
           status: 502,
           headers: { 'content-type': 'application/json; charset=utf-8', 'x-shopdeck-gateway': 'error' },
           body: Buffer.from(JSON.stringify({ error: `${m.name}: ${why}`, gateway: true })),
         };
+      } finally {
+        signal?.removeEventListener('abort', abandon);
       }
     };
     const t = splitTarget(rest);
@@ -834,17 +846,25 @@ export function createHttpProxy(ctx: GatewayContext) {
     req.method = 'GET';
     req.url = rest;
     req.push(null);
-    await sendUpstream(
-      req,
-      res,
-      m,
-      'GET',
-      t,
-      forwardRequestHeaders(browserHeaders),
-      null,
-      false,
-      () => undefined,
-    );
+    try {
+      await sendUpstream(
+        req,
+        res,
+        m,
+        'GET',
+        t,
+        forwardRequestHeaders(browserHeaders),
+        null,
+        false,
+        () => undefined,
+      );
+    } catch (e) {
+      // The proxy threw before it could answer (its read slot is already released): the page
+      // gets the gateway's error, as a browser over HTTP would (gateway.ts).
+      if (!res.headersSent && !res.destroyed)
+        sendJson(res, 500, { error: scrub(e instanceof Error ? e.message : String(e)), gateway: true });
+      else res.destroy();
+    }
     return settled();
   }
 
@@ -854,5 +874,8 @@ export function createHttpProxy(ctx: GatewayContext) {
 /** What a read sent over a page's read socket comes to (proxy-http.ts `socketRead`). */
 export type SocketReadAnswer =
   | { status: number; headers: Record<string, string | string[]>; body: Buffer }
-  /** Not sent: the page sends it over HTTP (a command). */
-  | { fallback: string };
+  /**
+   * Not sent: the page sends it over HTTP (a command); or `tooLarge`: larger than the socket takes
+   * (the page reads it over HTTP, where it streams).
+   */
+  | { fallback: string; tooLarge?: boolean };
