@@ -590,16 +590,34 @@ export function createHttpProxy(ctx: GatewayContext) {
       }
     }
     const socket = tlsSocket;
-    const upstream = (isHttps ? https : http).request({
-      protocol: target.protocol,
-      hostname: target.hostname.replace(/^\[|\]$/g, ''),
-      port: target.port || (isHttps ? 443 : 80),
-      method,
-      path: basePath + pathAndQuery,
-      headers: { ...headers, host: target.host },
-      ...(socket ? { createConnection: () => socket } : { agent }),
-    });
+    let upstream: http.ClientRequest;
+    try {
+      upstream = (isHttps ? https : http).request({
+        protocol: target.protocol,
+        hostname: target.hostname.replace(/^\[|\]$/g, ''),
+        port: target.port || (isHttps ? 443 : 80),
+        method,
+        path: basePath + pathAndQuery,
+        headers: { ...headers, host: target.host },
+        ...(socket ? { createConnection: () => socket } : { agent }),
+      });
+    } catch (e) {
+      // Node refused to build it (a path or header it cannot write): not a byte was sent. Answered
+      // here like any failure, so the read's slot, the pinned socket and a command's audit line
+      // are not left to a throw that nothing would end.
+      socket?.destroy();
+      const words = `${m.name}: the gateway could not send this request (${redact(
+        e instanceof Error ? e.message : String(e),
+        forms,
+      )})`;
+      req.resume();
+      done({ error: `not sent: ${words}` });
+      gatewayError(res, 502, words);
+      return;
+    }
     pending.add(upstream);
+    // However it ends (error, answer, abandoned): not kept among the requests under way.
+    upstream.once('close', () => pending.delete(upstream));
     // A command: aborted at its deadline or when the browser leaves. Destroyed while its
     // connection is still being made, the request is never written.
     const unwatch = watch?.onAbort(() => upstream.destroy()) ?? (() => undefined);
@@ -764,7 +782,14 @@ export function createHttpProxy(ctx: GatewayContext) {
     req.url = pathAndQuery;
     req.push(null);
     const { res, answer } = captureAnswer(WATCH_READ_MAX);
-    await sendUpstream(req, res, m, 'GET', t, {}, null, false, () => undefined);
+    try {
+      await sendUpstream(req, res, m, 'GET', t, {}, null, false, () => undefined);
+    } catch (e) {
+      // Closed, so whatever counts it (the held session's reads under way) lets go of it.
+      res.destroy();
+      answer.catch(() => undefined);
+      throw e;
+    }
     const a = await answer;
     // `X-Shopdeck-Gateway` is the gateway's own (a controller's is never passed on): unreachable.
     const gateway = a.headers['x-shopdeck-gateway'] !== undefined;

@@ -160,7 +160,7 @@ async function slotRig(opts: { timeoutMs?: number; sharing?: SharingHints } = {}
   };
   const gw = await gatewayFor(cleanups, [stubEntry('p1', stub.url)], {
     families: { prunt: family },
-    users: [user('vera', 'viewer', 'viewer-pass-1')],
+    users: [user('vera', 'viewer', 'viewer-pass-1'), user('sara', 'supervisor', 'supervisor-pass-1')],
     upstream: { queueTimeoutMs: 2000 },
     ...(opts.timeoutMs ? { timeoutMs: opts.timeoutMs } : {}),
   });
@@ -203,6 +203,27 @@ describe('a read slot is given back on every way a read ends', () => {
       }
       expect(await g.read()).toBe(200);
       expect(g.gw.gw.upstreamStats('p1')?.refusedReads).toBe(0);
+    });
+
+    it(`${kind}: a command that throws as it is created is answered and audited, never left hanging`, async () => {
+      const g = await slotRig({ sharing });
+      const sara = await login(g.gw.url, 'sara', 'supervisor-pass-1');
+      const h = await within(
+        'a command',
+        consoleFetch(`${g.gw.url}/machines/p1/throw`, {
+          method: 'POST',
+          headers: { Cookie: sara },
+          body: 'x',
+        }),
+      );
+      expect(h.status).toBe(502);
+      expect(await h.text()).not.toMatch(/a\nb/);
+      await g.gw.gw.audit.flush();
+      const line = g.gw.gw.audit.all().find((e) => e.type === 'command' && e.path === '/throw');
+      expect(line?.result).toBe('error');
+      expect(String(line?.error)).toMatch(/not sent/);
+      expect(g.stub.seen.length).toBe(0);
+      expect(await g.read()).toBe(200);
     });
 
     it(`${kind}: the controller's connection breaks (socket error)`, async () => {
