@@ -25,9 +25,13 @@ import { refuseUpgrade } from './proxy-ws';
  * `{"cancel": n}` (the page gave up: its answer is not sent).
  * Gateway → page: `{"id": n, "status": s, "headers": {…}, "body": "<text>"}`, or
  * `{"id": n, "fallback": "<why>"}` for a read that was not sent (read it over HTTP: a command, too
- * many reads at once). A read that was sent is answered, if need be with the gateway's own error
- * (an answer over the size the socket takes, a cut one): never given back to be asked again, as
- * a read may be consumed (RepRapFirmware hands each `rr_reply` out once).
+ * many reads at once) or whose answer is larger than the socket takes (`READ_SOCKET_LIMITS`: it
+ * streams over HTTP instead of being held whole here). Any other read that was sent is answered,
+ * if need be with the gateway's own error (a cut one): never given back to be asked again, as a
+ * read may be consumed (RepRapFirmware hands each `rr_reply` out once; those are a few kB).
+ *
+ * What the server holds for pages is bounded per socket and per user (sockets per user, bytes
+ * being gathered, bytes sent and not yet read, answer size): gateway/README.md.
  */
 
 export const READ_SOCKET_PATH = '/api/reads';
