@@ -845,7 +845,10 @@ export function createHttpProxy(ctx: GatewayContext) {
       return settled();
     }
     const decision = classify(m, { method: 'GET', path: t.path, query: t.query });
-    if (decision.command) return { fallback: 'a command goes over HTTP' };
+    if (decision.command) {
+      signal?.removeEventListener('abort', abandon);
+      return { fallback: 'a command goes over HTTP' };
+    }
     const w = who(from, false);
     const v = authorize(w, m, decision);
     if (!v.ok) {

@@ -215,11 +215,8 @@ export function createReadSocket(
     /** Counts `bytes` more of one read's answer, if the socket's and the user's bounds allow. */
     const take = (f: InFlight, bytes: number): boolean => {
       if (f.cancelled) return false;
-      const socketHeld = gathering + client.bufferedAmount + bytes;
-      const userHeld = mine.gathering + unsentOf(mine.sockets) + bytes;
-      if (f.taken + bytes > limits.maxAnswer || socketHeld > limits.maxGathering + limits.maxBuffered)
-        return false;
-      if (gathering + bytes > limits.maxGathering || userHeld > limits.maxHeldPerUser) return false;
+      if (f.taken + bytes > limits.maxAnswer || gathering + bytes > limits.maxGathering) return false;
+      if (mine.gathering + unsentOf(mine.sockets) + bytes > limits.maxHeldPerUser) return false;
       f.taken += bytes;
       gathering += bytes;
       mine.gathering += bytes;
