@@ -138,6 +138,48 @@ describe('a viewer cannot jam a machine’s reads with URLs that cannot be sent'
   );
 });
 
+describe('the same on a simulated machine (answered inside the gateway)', () => {
+  it('malformed read URLs are 400 and never reach the simulator; its one read slot stays free', async () => {
+    const base = testFamily('prunt');
+    const seen: string[] = [];
+    const family: FamilyDescriptor = {
+      ...base,
+      gateway: {
+        ...base.gateway,
+        sharing: { shareRead: () => null, keepAlive: false, maxConcurrentReads: 1 },
+      },
+      createSimulator: (o) => {
+        const sim = base.createSimulator(o);
+        return { ...sim, fetch: (req, p) => (seen.push(p), sim.fetch(req, p)) };
+      },
+    };
+    const gw = await gatewayFor(cleanups, [stubEntry('s1', null, { simulated: true })], {
+      families: { prunt: family },
+      users: [user('vera', 'viewer', 'viewer-pass-1')],
+      upstream: { queueTimeoutMs: 2000 },
+    });
+    const cookie = await login(gw.url, 'vera', 'viewer-pass-1');
+    const r = await reader(gw, cookie);
+    let id = 0;
+    for (const url of ['/machines/s1/status?x= y', '/machines/s1/status?x=\u0100', '/machines/s1/st atus'])
+      for (let i = 0; i < 2; i++) {
+        r.send({ id: ++id, url });
+        expect((await r.next()).status).toBe(400);
+      }
+    expect(seen).toEqual([]);
+    r.send({ id: ++id, url: '/machines/s1/status' });
+    expect((await r.next()).status).toBe(200);
+    const h = await within(
+      'HTTP read',
+      consoleFetch(`${gw.url}/machines/s1/status`, { headers: { Cookie: cookie } }),
+    );
+    expect(h.status).toBe(200);
+    expect(gw.gw.upstreamStats('s1')?.refusedReads).toBe(0);
+    // The simulator was reached by the well-formed reads only.
+    expect(seen).toEqual(['/status', '/status']);
+  });
+});
+
 // ---------------------------------------------------------------- finding 1: every way a read ends
 
 /** One read slot, no queue wait beyond 2 s: a slot not given back makes the next read a 503. */
