@@ -9,7 +9,7 @@ import { BodyTooLarge, clientAddress, rejectUpgrade, sendJson } from './http-uti
 import type { MachinesConfig } from './machines';
 import { createHttpProxy, READ_METHODS } from './proxy-http';
 import { createWsProxy } from './proxy-ws';
-import { createReadSocket, READ_SOCKET_PATH } from './read-socket';
+import { createReadSocket, READ_SOCKET_PATH, type ReadSocketHeld } from './read-socket';
 import { type AlarmCentre, createAlarmStores } from './alarms';
 import { MachineWatch } from './watch';
 import { createHistory, type History } from './history';
@@ -52,6 +52,8 @@ export interface Gateway {
   upstreamStats(id: string): UpstreamStats | null;
   /** Pages' read sockets open now (read-socket.ts). */
   readSockets(): number;
+  /** Bytes the read sockets hold (gathered, unsent) and the most they held (read-socket.ts). */
+  readSocketHeld(): ReadSocketHeld;
   /** Shared controller sockets of a machine (streams.ts): browser sockets joined, hubs open. */
   streamStats(id: string): { joined: number; open: number };
 }
@@ -289,6 +291,7 @@ export function createGateway(opts: GatewayOptions): Gateway {
     upstreamStats: ctx.upstreamStats,
     streamStats: (id: string) => ctx.streams.stats(id),
     readSockets: () => readSocket.open,
+    readSocketHeld: () => readSocket.held(),
   };
 }
 

@@ -597,11 +597,15 @@ export class HeldSession {
   /** A forwarded request: the key applied, or why there is none. */
   async use(r: HeldRequest, res: ServerResponse): Promise<HeldHttp | Failure> {
     this.touch();
-    this.inFlight++;
-    res.once('close', () => {
-      this.inFlight--;
-      this.touch();
-    });
+    // Counted while its answer is under way: until `res` closes, or not at all when it closed
+    // already (its 'close' is behind us: counted, the session would be held for ever).
+    if (!res.destroyed) {
+      this.inFlight++;
+      res.once('close', () => {
+        this.inFlight--;
+        this.touch();
+      });
+    }
     const e = await this.ensure();
     if (!e.ok) return e;
     this.hooks.apply({ headers: r.headers, query: r.query }, e.key);

@@ -85,10 +85,22 @@ export interface SplitTarget {
 export type SplitResult = SplitTarget | { error: string };
 
 /**
+ * What may stand in a request target as it is sent upstream (RFC 9112 §3.2: printable ASCII, no
+ * space): anything else must come percent-encoded. Node's `http.request` throws on a space or a
+ * control character, or on a character above U+00FF, and would send a byte from U+0080 to U+00FF
+ * raw: both are refused here, whatever way the target came (HTTP, the read socket, the watch).
+ */
+const TARGET_CHARS = /^[\x21-\x7e]*$/;
+
+/**
  * Splits "/a/b?x=1" (the part after `/machines/<id>`). Refuses a query with a repeated key:
- * a family reads the first value, a controller may act on the last.
+ * a family reads the first value, a controller may act on the last. Refuses a target with a
+ * character that cannot be sent as it is (a space, a control, anything not ASCII): it must come
+ * percent-encoded, as a browser sends it.
  */
 export function splitTarget(rest: string): SplitResult {
+  if (!TARGET_CHARS.test(rest))
+    return { error: 'the request target has a space, a control or a non-ASCII character: percent-encode it' };
   const hash = rest.indexOf('#');
   const noHash = hash >= 0 ? rest.slice(0, hash) : rest;
   const q = noHash.indexOf('?');

@@ -24,7 +24,7 @@ import type { GatewayContext, Verdict } from './context';
 import { crossSiteProblem } from './csrf';
 import type { AccessDecision } from '../src/fleet/access';
 import { unreachableReason } from './log';
-import { captureAnswer } from './upstream-http';
+import { AnswerTooLarge, captureAnswer } from './upstream-http';
 
 const MAX_CLASSIFY_BODY = 1024 * 1024;
 const MAX_SIM_BODY = 64 * 1024 * 1024;
@@ -598,16 +598,34 @@ export function createHttpProxy(ctx: GatewayContext) {
       }
     }
     const socket = tlsSocket;
-    const upstream = (isHttps ? https : http).request({
-      protocol: target.protocol,
-      hostname: target.hostname.replace(/^\[|\]$/g, ''),
-      port: target.port || (isHttps ? 443 : 80),
-      method,
-      path: basePath + pathAndQuery,
-      headers: { ...headers, host: target.host },
-      ...(socket ? { createConnection: () => socket } : { agent }),
-    });
+    let upstream: http.ClientRequest;
+    try {
+      upstream = (isHttps ? https : http).request({
+        protocol: target.protocol,
+        hostname: target.hostname.replace(/^\[|\]$/g, ''),
+        port: target.port || (isHttps ? 443 : 80),
+        method,
+        path: basePath + pathAndQuery,
+        headers: { ...headers, host: target.host },
+        ...(socket ? { createConnection: () => socket } : { agent }),
+      });
+    } catch (e) {
+      // Node refused to build it (a path or header it cannot write): not a byte was sent. Answered
+      // here like any failure, so the read's slot, the pinned socket and a command's audit line
+      // are not left to a throw that nothing would end.
+      socket?.destroy();
+      const words = `${m.name}: the gateway could not send this request (${redact(
+        e instanceof Error ? e.message : String(e),
+        forms,
+      )})`;
+      req.resume();
+      done({ error: `not sent: ${words}` });
+      gatewayError(res, 502, words);
+      return;
+    }
     pending.add(upstream);
+    // However it ends (error, answer, abandoned): not kept among the requests under way.
+    upstream.once('close', () => pending.delete(upstream));
     // A command: aborted at its deadline or when the browser leaves. Destroyed while its
     // connection is still being made, the request is never written.
     const unwatch = watch?.onAbort(() => upstream.destroy()) ?? (() => undefined);
@@ -772,7 +790,14 @@ export function createHttpProxy(ctx: GatewayContext) {
     req.url = pathAndQuery;
     req.push(null);
     const { res, answer } = captureAnswer(WATCH_READ_MAX);
-    await sendUpstream(req, res, m, 'GET', t, {}, null, false, () => undefined);
+    try {
+      await sendUpstream(req, res, m, 'GET', t, {}, null, false, () => undefined);
+    } catch (e) {
+      // Closed, so whatever counts it (the held session's reads under way) lets go of it.
+      res.destroy();
+      answer.catch(() => undefined);
+      throw e;
+    }
     const a = await answer;
     // `X-Shopdeck-Gateway` is the gateway's own (a controller's is never passed on): unreachable.
     const gateway = a.headers['x-shopdeck-gateway'] !== undefined;
@@ -793,21 +818,33 @@ export function createHttpProxy(ctx: GatewayContext) {
     rest: string,
     browserHeaders: Record<string, string>,
     cap: number,
+    /** The page gave up or its socket closed: the read is abandoned (its upstream slot freed). */
+    signal?: AbortSignal,
+    /** Each chunk of the answer as it is gathered: false refuses it (the answer is too large). */
+    take?: (bytes: number) => boolean,
   ): Promise<SocketReadAnswer> {
-    const { res, answer } = captureAnswer(cap);
+    const { res, answer } = captureAnswer(cap, take);
+    const abandon = (): void => {
+      if (!res.writableFinished) res.destroy();
+    };
+    if (signal?.aborted) abandon();
+    signal?.addEventListener('abort', abandon, { once: true });
     const settled = async (): Promise<SocketReadAnswer> => {
       try {
         const a = await answer;
         return { status: a.status, headers: a.headers, body: a.body };
       } catch (e) {
-        // Larger than the socket takes, or cut. The controller was asked already: the page is told
-        // it failed, never sent to ask again (a read may be consumed, as RepRapFirmware's rr_reply).
+        if (e instanceof AnswerTooLarge) return { fallback: e.message, tooLarge: true };
+        // Cut. The controller was asked already: the page is told it failed, never sent to ask
+        // again (a read may be consumed, as RepRapFirmware's rr_reply).
         const why = e instanceof Error ? e.message : String(e);
         return {
           status: 502,
           headers: { 'content-type': 'application/json; charset=utf-8', 'x-shopdeck-gateway': 'error' },
           body: Buffer.from(JSON.stringify({ error: `${m.name}: ${why}`, gateway: true })),
         };
+      } finally {
+        signal?.removeEventListener('abort', abandon);
       }
     };
     const t = splitTarget(rest);
@@ -816,7 +853,10 @@ export function createHttpProxy(ctx: GatewayContext) {
       return settled();
     }
     const decision = classify(m, { method: 'GET', path: t.path, query: t.query });
-    if (decision.command) return { fallback: 'a command goes over HTTP' };
+    if (decision.command) {
+      signal?.removeEventListener('abort', abandon);
+      return { fallback: 'a command goes over HTTP' };
+    }
     const w = who(from, false);
     const v = authorize(w, m, decision);
     if (!v.ok) {
@@ -842,17 +882,25 @@ export function createHttpProxy(ctx: GatewayContext) {
     req.method = 'GET';
     req.url = rest;
     req.push(null);
-    await sendUpstream(
-      req,
-      res,
-      m,
-      'GET',
-      t,
-      forwardRequestHeaders(browserHeaders),
-      null,
-      false,
-      () => undefined,
-    );
+    try {
+      await sendUpstream(
+        req,
+        res,
+        m,
+        'GET',
+        t,
+        forwardRequestHeaders(browserHeaders),
+        null,
+        false,
+        () => undefined,
+      );
+    } catch (e) {
+      // The proxy threw before it could answer (its read slot is already released): the page
+      // gets the gateway's error, as a browser over HTTP would (gateway.ts).
+      if (!res.headersSent && !res.destroyed)
+        sendJson(res, 500, { error: scrub(e instanceof Error ? e.message : String(e)), gateway: true });
+      else res.destroy();
+    }
     return settled();
   }
 
@@ -862,5 +910,8 @@ export function createHttpProxy(ctx: GatewayContext) {
 /** What a read sent over a page's read socket comes to (proxy-http.ts `socketRead`). */
 export type SocketReadAnswer =
   | { status: number; headers: Record<string, string | string[]>; body: Buffer }
-  /** Not sent: the page sends it over HTTP (a command). */
-  | { fallback: string };
+  /**
+   * Not sent: the page sends it over HTTP (a command); or `tooLarge`: larger than the socket takes
+   * (the page reads it over HTTP, where it streams).
+   */
+  | { fallback: string; tooLarge?: boolean };

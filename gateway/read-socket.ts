@@ -25,9 +25,13 @@ import { refuseUpgrade } from './proxy-ws';
  * `{"cancel": n}` (the page gave up: its answer is not sent).
  * Gateway → page: `{"id": n, "status": s, "headers": {…}, "body": "<text>"}`, or
  * `{"id": n, "fallback": "<why>"}` for a read that was not sent (read it over HTTP: a command, too
- * many reads at once). A read that was sent is answered, if need be with the gateway's own error
- * (an answer over the size the socket takes, a cut one): never given back to be asked again, as
- * a read may be consumed (RepRapFirmware hands each `rr_reply` out once).
+ * many reads at once) or whose answer is larger than the socket takes (`READ_SOCKET_LIMITS`: it
+ * streams over HTTP instead of being held whole here). Any other read that was sent is answered,
+ * if need be with the gateway's own error (a cut one): never given back to be asked again, as a
+ * read may be consumed (RepRapFirmware hands each `rr_reply` out once; those are a few kB).
+ *
+ * What the server holds for pages is bounded per socket and per user (sockets per user, bytes
+ * being gathered, bytes sent and not yet read, answer size): gateway/README.md.
  */
 
 export const READ_SOCKET_PATH = '/api/reads';
@@ -37,11 +41,36 @@ export const READ_SOCKET_LIMITS = {
   maxMessage: 16 * 1024,
   /** Reads answered at once per socket; more are told to go over HTTP. */
   maxInFlight: 64,
-  /** Largest answer sent on the socket; a larger one is the gateway's 502 (no read answers so much). */
-  maxAnswer: 8 * 1024 * 1024,
-  /** A page that reads its socket slower than this much is waiting is closed (it reads over HTTP). */
-  maxBuffered: 16 * 1024 * 1024,
+  /**
+   * Largest answer message sent on the socket (bytes of its JSON). A larger answer is not gathered
+   * further (its upstream request is dropped) and the page is told to read it over HTTP
+   * (`fallback`), where it streams with back-pressure instead of being held whole.
+   */
+  maxAnswer: 1024 * 1024,
+  /**
+   * Bytes of answers being gathered from controllers for one socket at once; a read whose answer
+   * would go beyond is told to read over HTTP (`fallback`).
+   */
+  maxGathering: 2 * 1024 * 1024,
+  /** Bytes sent to a page and not yet taken by it; one answer more is refused by closing it (1013). */
+  maxBuffered: 2 * 1024 * 1024,
+  /** Read sockets one user has open at once; one more is refused (429: that page reads over HTTP). */
+  maxSocketsPerUser: 8,
+  /** Bytes held for one user's sockets together (gathered and unsent), checked as for one socket. */
+  maxHeldPerUser: 8 * 1024 * 1024,
 };
+
+export type ReadSocketLimits = typeof READ_SOCKET_LIMITS;
+
+/** What the read sockets hold now, and the most they held at once (tests, benchmarks). */
+export interface ReadSocketHeld {
+  /** Bytes of answers being gathered from controllers. */
+  gathering: number;
+  /** Bytes sent to pages and not yet taken by them. */
+  unsent: number;
+  /** The most `gathering + unsent` has been since the gateway started. */
+  peak: number;
+}
 
 /** The answer headers a page gets on the socket (what the console's clients read). */
 const PASSED_HEADERS = ['content-type', 'x-shopdeck-gateway', 'retry-after'];
@@ -82,18 +111,64 @@ export interface ReadSocketHost {
     rest: string,
     headers: Record<string, string>,
     cap: number,
+    /** Aborted when the page gives the read up or its socket closes. */
+    signal?: AbortSignal,
+    /** Each chunk of the answer before it is kept: false refuses it as too large. */
+    take?: (bytes: number) => boolean,
   ): Promise<SocketReadAnswer>;
 }
 
-export function createReadSocket(ctx: GatewayContext, host: ReadSocketHost, limits = READ_SOCKET_LIMITS) {
+/** One user's read sockets (key: the account, the operator behind a supervisor's unlock). */
+interface UserSockets {
+  sockets: Set<WebSocket>;
+  /** Bytes being gathered for them. */
+  gathering: number;
+}
+
+/** One read in flight on a socket. */
+interface InFlight {
+  abort: AbortController;
+  /** Bytes of its answer gathered so far (counted in the socket's and user's `gathering`). */
+  taken: number;
+  cancelled: boolean;
+}
+
+export function createReadSocket(
+  ctx: GatewayContext,
+  host: ReadSocketHost,
+  given: Partial<ReadSocketLimits> = {},
+) {
+  const limits: ReadSocketLimits = { ...READ_SOCKET_LIMITS, ...given };
   const { who, byId, openSockets, scrub } = ctx;
   const sockets = new Set<WebSocket>();
+  const users = new Map<string, UserSockets>();
+  let gatheringAll = 0;
+  let peak = 0;
   const wss = new WebSocketServer({
     noServer: true,
     clientTracking: false,
     perMessageDeflate: false,
     maxPayload: limits.maxMessage,
   });
+
+  /** Whose sockets these are: one account's, whatever unlock it holds (open mode: per address). */
+  function userKey(w: ReturnType<typeof who>): string {
+    const p = w.principal;
+    if (!p) return '';
+    return w.mode === 'open' ? `open ${p.name}` : `user ${p.onBehalfOf ?? p.name}`;
+  }
+
+  function unsentOf(set: Iterable<WebSocket>): number {
+    let n = 0;
+    for (const s of set) n += s.bufferedAmount;
+    return n;
+  }
+
+  function held(): ReadSocketHeld {
+    const unsent = unsentOf(sockets);
+    peak = Math.max(peak, gatheringAll + unsent);
+    return { gathering: gatheringAll, unsent, peak };
+  }
 
   function upgrade(req: IncomingMessage, socket: Duplex, head: Buffer): void {
     if (refuseUpgrade(ctx, req, socket, { path: READ_SOCKET_PATH })) return;
@@ -103,27 +178,76 @@ export function createReadSocket(ctx: GatewayContext, host: ReadSocketHost, limi
         error: w.expired ? 'your session expired: log in again' : 'log in first',
         login: true,
       });
-    wss.handleUpgrade(req, socket, head, (client) => serve(client, req));
+    const key = userKey(w);
+    if ((users.get(key)?.sockets.size ?? 0) >= limits.maxSocketsPerUser)
+      return rejectUpgrade(socket, 429, {
+        error: `${limits.maxSocketsPerUser} read sockets are open for this user already: this page reads over HTTP`,
+      });
+    wss.handleUpgrade(req, socket, head, (client) => serve(client, req, key));
   }
 
-  function serve(client: WebSocket, req: IncomingMessage): void {
+  function serve(client: WebSocket, req: IncomingMessage, key: string): void {
+    let user = users.get(key);
+    if (!user) {
+      user = { sockets: new Set(), gathering: 0 };
+      users.set(key, user);
+    }
+    if (user.sockets.size >= limits.maxSocketsPerUser) {
+      // Two upgrades at once passed the check above: the later one is closed here.
+      client.close(1013, 'too many read sockets for this user');
+      return;
+    }
+    const mine = user;
     sockets.add(client);
     openSockets.add(client);
-    const inFlight = new Set<number>();
-    const cancelled = new Set<number>();
+    mine.sockets.add(client);
+    const inFlight = new Map<number, InFlight>();
+    let gathering = 0;
     client.once('close', () => {
       sockets.delete(client);
       openSockets.delete(client);
+      mine.sockets.delete(client);
+      if (mine.sockets.size === 0 && users.get(key) === mine) users.delete(key);
+      // Nobody will read these answers: their upstream requests are dropped, their slots freed.
+      for (const f of inFlight.values()) f.abort.abort();
     });
     client.on('error', () => client.terminate());
-    const send = (msg: object): void => {
+    /** Counts `bytes` more of one read's answer, if the socket's and the user's bounds allow. */
+    const take = (f: InFlight, bytes: number): boolean => {
+      if (f.cancelled) return false;
+      if (f.taken + bytes > limits.maxAnswer || gathering + bytes > limits.maxGathering) return false;
+      if (mine.gathering + unsentOf(mine.sockets) + bytes > limits.maxHeldPerUser) return false;
+      f.taken += bytes;
+      gathering += bytes;
+      mine.gathering += bytes;
+      gatheringAll += bytes;
+      held();
+      return true;
+    };
+    const giveBack = (f: InFlight): void => {
+      gathering -= f.taken;
+      mine.gathering -= f.taken;
+      gatheringAll -= f.taken;
+      f.taken = 0;
+    };
+    const sendText = (text: string): void => {
       if (client.readyState !== client.OPEN) return;
-      if (client.bufferedAmount > limits.maxBuffered) {
+      const bytes = Buffer.byteLength(text);
+      if (
+        client.bufferedAmount + bytes > limits.maxBuffered ||
+        mine.gathering + unsentOf(mine.sockets) + bytes > limits.maxHeldPerUser
+      ) {
         client.close(1013, 'the page reads its answers too slowly');
         return;
       }
-      client.send(JSON.stringify(msg));
+      client.send(text);
+      held();
     };
+    const send = (msg: object): void => sendText(JSON.stringify(msg));
+    const tooLarge = (id: number): object => ({
+      id,
+      fallback: `the answer is larger than the read socket takes (${limits.maxAnswer} bytes): read it over HTTP`,
+    });
     client.on('message', (data: RawData, isBinary: boolean) => {
       if (isBinary) {
         client.close(1003, 'text messages only');
@@ -137,7 +261,12 @@ export function createReadSocket(ctx: GatewayContext, host: ReadSocketHost, limi
         return;
       }
       if ('cancel' in ask) {
-        if (inFlight.has(ask.cancel)) cancelled.add(ask.cancel);
+        const f = inFlight.get(ask.cancel);
+        if (f && !f.cancelled) {
+          // Not answered; its upstream request dropped as a browser's that leaves.
+          f.cancelled = true;
+          f.abort.abort();
+        }
         return;
       }
       const { id } = ask;
@@ -167,14 +296,30 @@ export function createReadSocket(ctx: GatewayContext, host: ReadSocketHost, limi
         );
         return;
       }
-      inFlight.add(id);
-      host
-        .read(req, m, target[2] || '/', ask.headers ?? {}, limits.maxAnswer)
+      const f: InFlight = { abort: new AbortController(), taken: 0, cancelled: false };
+      inFlight.set(id, f);
+      let ended: Promise<SocketReadAnswer>;
+      try {
+        ended = host.read(
+          req,
+          m,
+          target[2] || '/',
+          ask.headers ?? {},
+          limits.maxAnswer,
+          f.abort.signal,
+          (n) => take(f, n),
+        );
+      } catch (e) {
+        ended = Promise.reject(e instanceof Error ? e : new Error(String(e)));
+      }
+      ended
         .then(
           (a) => {
-            if (cancelled.has(id)) return;
+            // What it gathered is now this answer, counted as unsent once it is sent.
+            giveBack(f);
+            if (f.cancelled) return;
             if ('fallback' in a) {
-              send({ id, fallback: a.fallback });
+              send(a.tooLarge ? tooLarge(id) : { id, fallback: a.fallback });
               return;
             }
             const headers: Record<string, string> = {};
@@ -182,20 +327,31 @@ export function createReadSocket(ctx: GatewayContext, host: ReadSocketHost, limi
               const v = a.headers[k];
               if (v !== undefined) headers[k] = Array.isArray(v) ? v.join(', ') : v;
             }
-            send({ id, status: a.status, headers, body: a.body.toString('utf8') });
+            const text = JSON.stringify({ id, status: a.status, headers, body: a.body.toString('utf8') });
+            // Escaped as JSON, an answer may grow beyond what the socket takes: read over HTTP.
+            if (Buffer.byteLength(text) > limits.maxAnswer) send(tooLarge(id));
+            else sendText(text);
             // The user's session ended (logged out, expired, removed): the page learns it from
             // this answer (401) and reads over HTTP from now on.
             if (a.status === 401) client.close(4401, 'log in again');
           },
           (e: unknown) => {
+            giveBack(f);
             // It may have reached the controller: an error, never "ask again over HTTP".
-            if (!cancelled.has(id))
-              send(answerOf(id, 502, { error: e instanceof Error ? e.message : String(e), gateway: true }));
+            if (!f.cancelled)
+              send(
+                answerOf(id, 502, {
+                  error: scrub(e instanceof Error ? e.message : String(e)),
+                  gateway: true,
+                }),
+              );
           },
         )
         .finally(() => {
-          inFlight.delete(id);
-          cancelled.delete(id);
+          // Every way a read ends (answered, failed, cancelled, its socket closed) gives back
+          // what it held and its id.
+          giveBack(f);
+          if (inFlight.get(id) === f) inFlight.delete(id);
         });
     });
   }
@@ -215,6 +371,8 @@ export function createReadSocket(ctx: GatewayContext, host: ReadSocketHost, limi
     get open(): number {
       return sockets.size;
     },
+    /** Bytes the read sockets hold now, and the most they held (tests, benchmarks). */
+    held,
   };
 }
 

@@ -253,6 +253,8 @@ class Capture extends Writable {
   constructor(
     private readonly cap: number,
     private readonly listener: CaptureListener,
+    /** Each chunk before it is kept: false treats the answer as larger than `cap`. */
+    private readonly take?: (bytes: number) => boolean,
   ) {
     super();
     // Failures reach the waiters through the listener; an error event has nobody else to tell.
@@ -304,7 +306,7 @@ class Capture extends Writable {
     }
     this.chunks.push(chunk);
     this.size += chunk.length;
-    if (this.size <= this.cap) {
+    if (this.size <= this.cap && (this.take?.(chunk.length) ?? true)) {
       cb();
       return;
     }
@@ -340,11 +342,22 @@ function asResponse(c: Capture): ServerResponse {
   return c as unknown as ServerResponse;
 }
 
+/** A captured answer outgrew its cap (or the budget of whoever waits for it): nothing kept. */
+export class AnswerTooLarge extends Error {
+  constructor(readonly cap: number) {
+    super(`the answer is larger than ${cap} bytes`);
+  }
+}
+
 /**
  * A response for the gateway's own reads (the watch): the whole answer, up to `cap` bytes, or a
  * failure (cut, abandoned, larger than `cap`).
  */
-export function captureAnswer(cap: number): {
+export function captureAnswer(
+  cap: number,
+  /** Each chunk before it is kept (the read socket's budget): false fails it as too large. */
+  take?: (bytes: number) => boolean,
+): {
   res: ServerResponse;
   answer: Promise<{ status: number; headers: Answer['headers']; body: Buffer }>;
 } {
@@ -354,16 +367,20 @@ export function captureAnswer(cap: number): {
     resolve = ok;
     reject = fail;
   });
-  const c = new Capture(cap, {
-    complete: (a) => resolve({ status: a.status, headers: a.headers, body: a.body }),
-    overflow: (_h, _b, cb) => {
-      reject(new Error(`the answer is larger than ${cap} bytes`));
-      cb(new Error('too large'));
+  const c = new Capture(
+    cap,
+    {
+      complete: (a) => resolve({ status: a.status, headers: a.headers, body: a.body }),
+      overflow: (_h, _b, cb) => {
+        reject(new AnswerTooLarge(cap));
+        cb(new Error('too large'));
+      },
+      chunk: (_c, cb) => cb(new Error('too large')),
+      endStream: noop,
+      failed: () => reject(new Error('the answer was cut or abandoned')),
     },
-    chunk: (_c, cb) => cb(new Error('too large')),
-    endStream: noop,
-    failed: () => reject(new Error('the answer was cut or abandoned')),
-  });
+    take,
+  );
   return { res: asResponse(c), answer };
 }
 
@@ -549,6 +566,11 @@ class MachineLink {
   /** A read that is not shared: still one of the machine's limited reads. */
   read(r: UpstreamCall, sharing: SharingHints, run: UpstreamRun): Promise<void> {
     const { res } = r;
+    // The browser left before the read came this far (its 'close' is behind us): not sent.
+    if (res.destroyed) {
+      r.req.resume();
+      return Promise.resolve();
+    }
     return new Promise<void>((resolve, reject) => {
       let cancel = noop;
       const gone = (): void => {
@@ -565,10 +587,21 @@ class MachineLink {
             released = true;
             this.release();
           };
+          // The slot is released on every way the read ends: its answer given or cut, the browser
+          // gone, a timeout or an error (each ends `res`: 'close'), or the proxy throwing before
+          // it could answer (below: the caller answers then; a capture may never be closed).
           res.once('close', release);
           this.stats.upstreamRequests++;
-          run(res, this.readAgent(sharing), this.counted(r.held, null)).then(resolve, (e: unknown) => {
-            if (res.destroyed || res.writableFinished) release();
+          let ran: Promise<void>;
+          try {
+            ran = run(res, this.readAgent(sharing), this.counted(r.held, null));
+          } catch (e) {
+            ran = Promise.reject(e instanceof Error ? e : new Error(String(e)));
+          }
+          ran.then(resolve, (e: unknown) => {
+            release();
+            // Half an answer written: it is cut, as a broken connection would cut it.
+            if (res.headersSent && !res.writableFinished) res.destroy();
             reject(e instanceof Error ? e : new Error(String(e)));
           });
         },
@@ -584,6 +617,11 @@ class MachineLink {
 
   /** A read answered from a kept answer, a read in flight, or a new shared upstream read. */
   sharedRead(r: UpstreamCall, sharing: SharingHints, run: UpstreamRun, windowMs: number): void {
+    // The browser left before the read came this far (its 'close' is behind us): not sent.
+    if (r.res.destroyed) {
+      r.req.resume();
+      return;
+    }
     for (const k of Object.keys(r.headers)) if (PER_BROWSER.test(k)) delete r.headers[k];
     const key = keyOf(r.method, r.pathAndQuery, r.headers);
     const kept = this.lookup(key);
@@ -611,9 +649,15 @@ class MachineLink {
         });
         this.stats.upstreamRequests++;
         const sink = asResponse(g.capture);
-        run(sink, this.readAgent(sharing), this.counted(r.held, sink, g)).catch((e: unknown) =>
-          g.crashed(e, this.deps.scrub),
-        );
+        // Released when the capture closes: answered, cut, abandoned (every waiter gone), or the
+        // proxy's throw answered by `crashed` (which ends or destroys it).
+        let ran: Promise<void>;
+        try {
+          ran = run(sink, this.readAgent(sharing), this.counted(r.held, sink, g));
+        } catch (e) {
+          ran = Promise.reject(e instanceof Error ? e : new Error(String(e)));
+        }
+        ran.catch((e: unknown) => g.crashed(e, this.deps.scrub));
       },
       (error) => g.refuse(error),
     );

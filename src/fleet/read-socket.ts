@@ -9,7 +9,8 @@ import { apiOrigin, wsUrlFor } from './origin';
  * Only reads go here (HttpClient: a GET without a body, not a command, not a binary answer), and
  * only while the socket is open: there is no queue. When it is not open, a read goes over HTTP as
  * before and the socket is opened again in the background (backing off 1 s → 30 s). A read the
- * gateway did not send ("fallback": it is a command, too many at once) is read over HTTP. A read
+ * gateway did not send ("fallback": it is a command, too many at once), or whose answer is larger
+ * than the socket takes (1 MiB: it streams over HTTP instead), is read over HTTP. Any other read
  * that was sent is never sent again: when the socket closes under it, it fails as a fetch whose
  * connection broke (a read may be consumed: RepRapFirmware hands each `rr_reply` out once).
  */
