@@ -85,6 +85,26 @@ interface JobDbRow {
   end_alarm: string | null;
 }
 
+interface StateDbRow {
+  machine: string;
+  state: HistoryState;
+  alarm: string | null;
+  started_at: number;
+  ended_at: number | null;
+}
+
+/** An interval clipped to [from, to); an open one ends at `now`. */
+function clipped(r: StateDbRow, from: number, to: number, now: number): Interval {
+  return {
+    machine: r.machine,
+    state: r.state,
+    alarm: r.alarm,
+    from: Math.max(r.started_at, from),
+    to: Math.min(r.ended_at ?? now, to),
+    open: r.ended_at === null,
+  };
+}
+
 export class HistoryReader {
   readonly db: Db;
   readonly file: string;
@@ -161,7 +181,8 @@ export class HistoryReader {
     };
   }
 
-  jobs(q: JobQuery): { jobs: JobRow[]; total: number } {
+  /** The jobs `q` asks for: a source (table or subquery), a condition and its parameters. */
+  private jobsWhere(q: JobQuery): { source: string; w: string; params: unknown[] } {
     let source = 'jobs';
     let params: unknown[] = [];
     const parts: string[] = [];
@@ -195,7 +216,11 @@ export class HistoryReader {
       );
       for (let i = 0; i < 6; i++) params.push(like);
     }
-    const w = parts.length ? parts.join(' AND ') : '1';
+    return { source, w: parts.length ? parts.join(' AND ') : '1', params };
+  }
+
+  jobs(q: JobQuery): { jobs: JobRow[]; total: number } {
+    const { source, w, params } = this.jobsWhere(q);
     const total = Number(
       this.db
         .prepare(`SELECT COUNT(*) FROM ${source} WHERE ${w}`)
@@ -207,6 +232,17 @@ export class HistoryReader {
       .all(...params, q.limit ?? 100, q.offset ?? 0) as JobDbRow[];
     const t = this.now();
     return { jobs: rows.map((r) => this.jobRow(r, t)), total };
+  }
+
+  /** The jobs `jobs(q)` lists, read one at a time as SQLite gives them (an export: no total). */
+  *jobRows(q: JobQuery): Generator<JobRow> {
+    const { source, w, params } = this.jobsWhere(q);
+    const stmt = this.db.prepare(
+      `SELECT * FROM ${source} WHERE ${w} ORDER BY started_at DESC, id DESC LIMIT ? OFFSET ?`,
+    );
+    const t = this.now();
+    for (const r of stmt.iterate(...params, q.limit ?? 100, q.offset ?? 0) as IterableIterator<JobDbRow>)
+      yield this.jobRow(r, t);
   }
 
   /**
@@ -251,25 +287,73 @@ export class HistoryReader {
         `SELECT machine, state, alarm, started_at, ended_at FROM (${sub})
          ORDER BY machine, started_at, id LIMIT ?`,
       )
-      .all(...params, max + 1) as Array<{
-      machine: string;
-      state: HistoryState;
-      alarm: string | null;
-      started_at: number;
-      ended_at: number | null;
-    }>;
+      .all(...params, max + 1) as StateDbRow[];
     const truncated = rows.length > max;
     return {
       truncated,
-      intervals: rows.slice(0, max).map((r) => ({
-        machine: r.machine,
-        state: r.state,
-        alarm: r.alarm,
-        from: Math.max(r.started_at, q.from),
-        to: Math.min(r.ended_at ?? t, to),
-        open: r.ended_at === null,
-      })),
+      intervals: rows.slice(0, max).map((r) => clipped(r, q.from, to, t)),
     };
+  }
+
+  /**
+   * The intervals `states(q, max)` answers, machine by machine in `order` (each in time order, as
+   * the states answer lists them), read as they come rather than held: the bound is the same (the
+   * first `max` by machine id, then time: each machine's share is counted first). One read
+   * transaction: every row is of the same moment. Run `intervals` to its end, or `return()` it.
+   */
+  statesByMachine(
+    q: RangeQuery,
+    order: readonly string[],
+    max = 50_000,
+  ): { truncated: boolean; intervals: Generator<Interval> } {
+    const t = this.now();
+    const to = this.until(q.to);
+    if (to <= q.from) return { truncated: false, intervals: (function* () {})() };
+    const db = this.db;
+    db.exec('BEGIN');
+    let open = true;
+    const end = (): void => {
+      if (open && db.inTransaction) db.exec('COMMIT');
+      open = false;
+    };
+    const share = new Map<string, number>();
+    let truncated = false;
+    try {
+      const [sub, params] = this.overlapping('states', q, q.from, to, '>');
+      const counts = db
+        .prepare(`SELECT machine, COUNT(*) AS n FROM (${sub}) GROUP BY machine ORDER BY machine`)
+        .all(...params) as Array<{ machine: string; n: number }>;
+      let left = max;
+      for (const c of counts) {
+        const n = Math.min(left, c.n);
+        if (c.n > n) truncated = true;
+        if (n > 0) share.set(c.machine, n);
+        left -= n;
+      }
+    } catch (e) {
+      end();
+      throw e;
+    }
+    const overlapping = (machine: string) => this.overlapping('states', { ...q, machine }, q.from, to, '>');
+    function* intervals(): Generator<Interval> {
+      try {
+        for (const machine of order) {
+          const n = share.get(machine);
+          if (!n) continue;
+          const [sub, params] = overlapping(machine);
+          const rows = db
+            .prepare(
+              `SELECT machine, state, alarm, started_at, ended_at FROM (${sub})
+               ORDER BY started_at, id LIMIT ?`,
+            )
+            .iterate(...params, n) as IterableIterator<StateDbRow>;
+          for (const r of rows) yield clipped(r, q.from, to, t);
+        }
+      } finally {
+        end();
+      }
+    }
+    return { truncated, intervals: intervals() };
   }
 
   /** Per machine: ms in each state within [from, to) (to clipped to now; open intervals count to now). */
