@@ -1,7 +1,7 @@
 import http from 'node:http';
 import path from 'node:path';
 import { monitorEventLoopDelay } from 'node:perf_hooks';
-import { afterEach, describe, expect, it } from 'vitest';
+import { afterAll, beforeAll, describe, expect, it } from 'vitest';
 import { csvRow } from '../../src/ui/csv';
 import type { MachineEntry } from '../machines';
 import { login, startGateway, tempDir, testFamily, user, writeJson } from '../test-util';
@@ -17,7 +17,7 @@ import { HISTORY_FILE } from './index';
  */
 
 const cleanups: Array<() => Promise<void> | void> = [];
-afterEach(async () => {
+afterAll(async () => {
   for (const c of cleanups.splice(0).reverse()) await c();
 });
 
@@ -168,9 +168,24 @@ async function measured<T>(
   }
 }
 
+/** Resolves when `ok()` holds, polling; rejects after `ms`. */
+async function until(what: string, ok: () => boolean, ms = 10_000): Promise<void> {
+  const end = Date.now() + ms;
+  while (!ok()) {
+    if (Date.now() > end) throw new Error(`timed out waiting for ${what}`);
+    await new Promise((r) => setTimeout(r, 20));
+  }
+}
+
 describe('history exports do not stall the gateway (finding 8)', () => {
+  // One filled history and one gateway for the three (the filling is the slow part).
+  let s: Awaited<ReturnType<typeof setup>>;
+  beforeAll(async () => {
+    s = await setup();
+  }, 30_000);
+
   it('eight states.csv at once as one user: 2 run, 6 get 429; the thread stays responsive; each export whole', async () => {
-    const { gw, from, cookies, agent, exportUrl } = await setup();
+    const { gw, from, cookies, agent, exportUrl } = s;
     const sam = cookies[0] ?? '';
     const { result, maxDelayMs, maxSessionMs } = await measured(gw.url, sam, agent, () =>
       Promise.all(Array.from({ length: 8 }, () => get(exportUrl, sam, agent))),
@@ -183,6 +198,8 @@ describe('history exports do not stall the gateway (finding 8)', () => {
     const want = expectedCsv(from);
     for (const r of ok) {
       expect(r.headers['content-type']).toBe('text/csv; charset=utf-8');
+      // More than the bound: the export says it is cut short (its body is what it always was).
+      expect(r.headers['x-shopdeck-truncated']).toBe('true');
       expect(r.body.length).toBe(want.length);
       expect(r.body === want).toBe(true);
     }
@@ -191,7 +208,7 @@ describe('history exports do not stall the gateway (finding 8)', () => {
   }, 60_000);
 
   it('eight states.csv at once from four users: all answered whole; the thread stays responsive', async () => {
-    const { gw, from, cookies, agent, exportUrl } = await setup();
+    const { gw, from, cookies, agent, exportUrl } = s;
     const { result, maxDelayMs, maxSessionMs } = await measured(gw.url, cookies[0] ?? '', agent, () =>
       Promise.all(Array.from({ length: 8 }, (_, i) => get(exportUrl, cookies[i % 4] ?? '', agent))),
     );
@@ -202,5 +219,33 @@ describe('history exports do not stall the gateway (finding 8)', () => {
     }
     expect(maxDelayMs, 'event-loop delay').toBeLessThan(300);
     expect(maxSessionMs, 'GET /api/session latency').toBeLessThan(500);
+  }, 60_000);
+
+  it('a client that goes away mid-export cancels its query and frees its place', async () => {
+    const { gw, cookies, agent, exportUrl } = s;
+    const sam = cookies[0] ?? '';
+    const reads = gw.gw.history.reads;
+    if (!reads) throw new Error('no history reads');
+    // Two exports (the most one user may run), each dropped after its first bytes.
+    await Promise.all(
+      [0, 1].map(
+        () =>
+          new Promise<void>((resolve, reject) => {
+            const req = http.get(exportUrl, { headers: { cookie: sam, 'X-Shopdeck': '1' }, agent }, (res) => {
+              expect(res.statusCode).toBe(200);
+              res.once('data', () => {
+                req.destroy();
+                resolve();
+              });
+            });
+            req.on('error', () => undefined);
+            setTimeout(() => reject(new Error('no first bytes')), 20_000);
+          }),
+      ),
+    );
+    // Never read on: without the cancel the worker would wait for the client until the stall cut-off (60 s).
+    await until('the cancelled exports to end in the worker', () => reads.stats().running === 0);
+    const again = await get(`${gw.url}/api/history/utilisation`, sam, agent);
+    expect(again.status).toBe(200);
   }, 60_000);
 });
