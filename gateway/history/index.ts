@@ -71,17 +71,42 @@ export function createHistory(o: HistoryOptions): History {
   const timers: Array<ReturnType<typeof setInterval>> = [];
   let puller: TouchcutStatsPuller | null = null;
 
-  const prune = (): void => {
+  const pruneFailed = (e: unknown): void => {
+    o.log.error('the production history could not be pruned', { error: String(e) });
+  };
+  /** At start, in one go; daily and after a change of the retention, a batch at a time. */
+  const pruneNow = (): void => {
     try {
       store?.prune();
     } catch (e) {
-      o.log.error('the production history could not be pruned', { error: String(e) });
+      pruneFailed(e);
     }
+  };
+  let pruning = false;
+  let again = false;
+  const prune = (): void => {
+    if (!store) return;
+    // One at a time; asked again meanwhile (a new retention): once more after it.
+    if (pruning) {
+      again = true;
+      return;
+    }
+    pruning = true;
+    void store
+      .pruneGently()
+      .catch(pruneFailed)
+      .finally(() => {
+        pruning = false;
+        if (again) {
+          again = false;
+          prune();
+        }
+      });
   };
 
   if (store) {
     const s = store;
-    prune();
+    pruneNow();
     puller = new TouchcutStatsPuller({
       store: s,
       machines: o.machines.filter((m) => m.kind === 'touchcut'),

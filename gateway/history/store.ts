@@ -547,28 +547,53 @@ export class HistoryStore {
 
   /** Deletes what is older than the retention (jobs and TouchCut days: `jobsDays`; states: `statesDays`). */
   prune(): { jobs: number; states: number; touchcutDays: number } {
+    const steps = this.pruneSteps();
+    for (;;) {
+      const s = steps.next();
+      if (s.done) return s.value;
+    }
+  }
+
+  /**
+   * `prune()` a batch at a time, letting the gateway's other work in between (a shorter retention
+   * can delete hundreds of thousands of rows: done in one go it would hold the thread for seconds).
+   */
+  async pruneGently(): Promise<{ jobs: number; states: number; touchcutDays: number }> {
+    const steps = this.pruneSteps();
+    for (;;) {
+      const s = steps.next();
+      if (s.done) return s.value;
+      await new Promise((r) => setImmediate(r));
+    }
+  }
+
+  private *pruneBatched(sql: string, param: number | string): Generator<void, number> {
+    let total = 0;
+    for (;;) {
+      if (this.closed) return total;
+      const n = this.db.prepare(sql).run(param, PRUNE_BATCH).changes;
+      total += n;
+      if (n < PRUNE_BATCH) return total;
+      yield;
+    }
+  }
+
+  /** The pruning, yielding after each batch of `PRUNE_BATCH` rows. */
+  private *pruneSteps(): Generator<void, { jobs: number; states: number; touchcutDays: number }> {
     if (this.closed) return { jobs: 0, states: 0, touchcutDays: 0 };
     const r = this.retention();
     const t = this.now();
     const jobsCut = t - r.jobsDays * DAY_MS;
     const statesCut = t - r.statesDays * DAY_MS;
-    const batched = (sql: string, param: number | string): number => {
-      let total = 0;
-      const stmt = this.db.prepare(sql);
-      for (;;) {
-        const n = stmt.run(param, PRUNE_BATCH).changes;
-        total += n;
-        if (n < PRUNE_BATCH) return total;
-      }
-    };
-    const jobs = batched(
+    const jobs = yield* this.pruneBatched(
       'DELETE FROM jobs WHERE id IN (SELECT id FROM jobs WHERE ended_at IS NOT NULL AND ended_at < ? LIMIT ?)',
       jobsCut,
     );
-    const states = batched(
+    const states = yield* this.pruneBatched(
       'DELETE FROM states WHERE id IN (SELECT id FROM states WHERE ended_at IS NOT NULL AND ended_at < ? LIMIT ?)',
       statesCut,
     );
+    if (this.closed) return { jobs, states, touchcutDays: 0 };
     const touchcutDays = this.db
       .prepare('DELETE FROM touchcut_days WHERE day < ?')
       .run(localDay(jobsCut)).changes;
