@@ -1,444 +1,19 @@
 import type { IncomingMessage, ServerResponse } from 'node:http';
-import { statsSchema } from '../../src/controllers/touchcut/wire';
-import { toCsv, type CsvValue } from '../../src/ui/csv';
-import type { GatewayContext, Principal } from '../context';
-import { sendJson } from '../http-util';
-import type { Retention, Shift } from '../settings';
+import type { GatewayContext } from '../context';
+import { clientAddress, sendJson } from '../http-util';
 import type { History } from './index';
-import { localDay, parseDate, shiftWindow } from './shifts';
-import {
-  OUTCOMES,
-  STATES,
-  type HistoryStore,
-  type JobCounts,
-  type JobRow,
-  type Outcome,
-  type StateSeconds,
-} from './store';
 
 /**
  * `GET /api/history/*` (documented in gateway/README.md): any signed-in user, every answer limited
- * to the machines the user may use. Times are ms since the epoch (UTC) in JSON and ISO 8601 (UTC)
- * in CSV; durations are seconds. Each table has a `.csv` form (formula-safe, src/ui/csv.ts).
+ * to the machines the user may use. The answers are computed in read workers (answers.ts,
+ * read-worker.ts), never on the gateway's thread, within the bounds of reads.ts.
  */
 
 export const HISTORY_API_PATH = /^\/api\/history\/[a-z-]+(\.csv)?$/;
-const DAY_MS = 86_400_000;
-/** The longest range one request may ask for. */
-export const MAX_RANGE_DAYS = 400;
-const CSV_MAX_JOBS = 10_000;
-
-class BadRequest extends Error {}
-class NotFound extends Error {}
-
-function seconds(ms: number): number {
-  return Math.round(ms) / 1000;
-}
-
-function secondsOf(s: StateSeconds): StateSeconds {
-  const out = { ...s };
-  for (const k of Object.keys(out) as Array<keyof StateSeconds>) out[k] = seconds(out[k]);
-  return out;
-}
-
-function iso(t: number | null): string | null {
-  return t === null ? null : new Date(t).toISOString();
-}
-
-/** `ms since the epoch` or an ISO 8601 date/time. */
-function parseTime(v: string | null, name: string): number | undefined {
-  if (v === null || v === '') return undefined;
-  const t = /^\d{1,15}$/.test(v) ? Number(v) : Date.parse(v);
-  if (!Number.isFinite(t)) throw new BadRequest(`${name}: a time as ms since the epoch or ISO 8601`);
-  return t;
-}
+export { MAX_RANGE_DAYS } from './answers';
 
 export function createHistoryApi(ctx: GatewayContext, history: History) {
-  const { who, needLogin, mayUseMachine, byId, config } = ctx;
-
-  function range(p: URLSearchParams): { from: number; to: number } {
-    const to = parseTime(p.get('to'), 'to') ?? ctx.now();
-    const from = parseTime(p.get('from'), 'from') ?? to - DAY_MS;
-    if (from >= to) throw new BadRequest('from must be before to');
-    if (to - from > MAX_RANGE_DAYS * DAY_MS) throw new BadRequest(`at most ${MAX_RANGE_DAYS} days at once`);
-    return { from, to };
-  }
-
-  /** `machine=` when the user may use it (404 otherwise, as for a machine that does not exist). */
-  function machineParam(pr: Principal, p: URLSearchParams): string | undefined {
-    const m = p.get('machine');
-    if (!m) return undefined;
-    if (!mayUseMachine(pr, m)) throw new NotFound(`no machine "${m}" you may see`);
-    return m;
-  }
-
-  /** The machines an answer lists: the machines file's the user may use, then others with records. */
-  function machineList(pr: Principal, store: HistoryStore, only: string | undefined): string[] {
-    if (only) return [only];
-    const ids = config.machines.map((m) => m.id).filter((id) => mayUseMachine(pr, id));
-    const known = new Set(ids);
-    for (const id of store.machinesRecorded()) if (!known.has(id) && mayUseMachine(pr, id)) ids.push(id);
-    return ids;
-  }
-
-  function machineInfo(id: string): { machine: string; machineName: string; family: string | null } {
-    const m = byId.get(id);
-    return { machine: id, machineName: m?.name ?? id, family: m?.kind ?? null };
-  }
-
-  function jobView(j: JobRow) {
-    return {
-      id: j.id,
-      machine: j.machine,
-      machineName: byId.get(j.machine)?.name ?? j.machine,
-      family: j.family,
-      name: j.name,
-      startedAt: j.startedAt,
-      endedAt: j.endedAt,
-      outcome: j.outcome,
-      runningS: seconds(j.runningMs),
-      pausedS: seconds(j.pausedMs),
-      progress: j.progress,
-      startedBy: j.startedBy,
-      pausedBy: j.pausedBy,
-      resumedBy: j.resumedBy,
-      stoppedBy: j.stoppedBy,
-      endAlarm: j.endAlarm,
-    };
-  }
-
-  function sendCsv(res: ServerResponse, name: string, header: CsvValue[], rows: CsvValue[][]): void {
-    const body = toCsv(header, rows, { bom: true });
-    res.writeHead(200, {
-      'Content-Type': 'text/csv; charset=utf-8',
-      'Content-Disposition': `attachment; filename="shopdeck-${name}.csv"`,
-      'Cache-Control': 'no-store',
-      'X-Content-Type-Options': 'nosniff',
-    });
-    res.end(body);
-  }
-
-  const SECONDS_COLUMNS = [...STATES, 'unrecorded'] as const;
-
-  function answer(
-    route: string,
-    csv: boolean,
-    pr: Principal,
-    p: URLSearchParams,
-    store: HistoryStore,
-    res: ServerResponse,
-  ): void {
-    const allowed = pr.machines;
-    switch (route) {
-      case 'jobs': {
-        const outcomeParam = p.get('outcome');
-        const outcome = [...OUTCOMES, 'open' as const].find((o) => o === outcomeParam);
-        if (outcomeParam && !outcome)
-          throw new BadRequest(`outcome: one of ${[...OUTCOMES, 'open'].join(', ')}`);
-        const from = parseTime(p.get('from'), 'from');
-        const to = parseTime(p.get('to'), 'to');
-        const limitP = Number(p.get('limit') ?? (csv ? CSV_MAX_JOBS : 100));
-        const offsetP = Number(p.get('offset') ?? 0);
-        if (!Number.isInteger(limitP) || limitP < 1 || limitP > (csv ? CSV_MAX_JOBS : 1000))
-          throw new BadRequest(`limit: 1 to ${csv ? CSV_MAX_JOBS : 1000}`);
-        if (!Number.isInteger(offsetP) || offsetP < 0) throw new BadRequest('offset: 0 or more');
-        const q = p.get('q')?.trim().slice(0, 200) || undefined;
-        const r = store.jobs({
-          machines: allowed,
-          machine: machineParam(pr, p),
-          family: p.get('family') || undefined,
-          outcome: outcome as Outcome | 'open' | undefined,
-          from,
-          to,
-          q,
-          limit: limitP,
-          offset: offsetP,
-        });
-        const jobs = r.jobs.map(jobView);
-        if (!csv) {
-          sendJson(res, 200, { jobs, total: r.total, limit: limitP, offset: offsetP });
-          return;
-        }
-        sendCsv(
-          res,
-          'jobs',
-          [
-            'id',
-            'machine',
-            'machine_name',
-            'family',
-            'job',
-            'started',
-            'ended',
-            'outcome',
-            'running_s',
-            'paused_s',
-            'progress',
-            'started_by',
-            'paused_by',
-            'resumed_by',
-            'stopped_by',
-            'end_alarm',
-          ],
-          jobs.map((j) => [
-            j.id,
-            j.machine,
-            j.machineName,
-            j.family,
-            j.name,
-            iso(j.startedAt),
-            iso(j.endedAt),
-            j.outcome ?? 'open',
-            j.runningS,
-            j.pausedS,
-            j.progress,
-            j.startedBy,
-            j.pausedBy,
-            j.resumedBy,
-            j.stoppedBy,
-            j.endAlarm,
-          ]),
-        );
-        return;
-      }
-      case 'states': {
-        const { from, to } = range(p);
-        const only = machineParam(pr, p);
-        const { intervals, truncated } = store.states({ machines: allowed, machine: only, from, to });
-        const per = new Map<string, typeof intervals>();
-        for (const i of intervals) {
-          const list = per.get(i.machine);
-          if (list) list.push(i);
-          else per.set(i.machine, [i]);
-        }
-        const machines = machineList(pr, store, only).map((id) => ({
-          ...machineInfo(id),
-          intervals: (per.get(id) ?? []).map((i) => ({
-            state: i.state,
-            alarm: i.alarm,
-            from: i.from,
-            to: i.to,
-            open: i.open,
-          })),
-        }));
-        if (!csv) {
-          sendJson(res, 200, { from, to, truncated, machines });
-          return;
-        }
-        sendCsv(
-          res,
-          'states',
-          ['machine', 'machine_name', 'state', 'alarm', 'from', 'to', 'seconds', 'open'],
-          machines.flatMap((m) =>
-            m.intervals.map((i) => [
-              m.machine,
-              m.machineName,
-              i.state,
-              i.alarm,
-              iso(i.from),
-              iso(i.to),
-              seconds(i.to - i.from),
-              i.open,
-            ]),
-          ),
-        );
-        return;
-      }
-      case 'utilisation': {
-        const { from, to } = range(p);
-        const only = machineParam(pr, p);
-        const until = Math.max(from, Math.min(to, ctx.now()));
-        const u = store.utilisation({ machines: allowed, machine: only, from, to });
-        const machines = machineList(pr, store, only).map((id) => {
-          const s = u.get(id) ?? { ...emptyLike(), unrecorded: until - from };
-          return { ...machineInfo(id), seconds: secondsOf(s) };
-        });
-        if (!csv) {
-          sendJson(res, 200, { from, to, spanS: seconds(until - from), machines });
-          return;
-        }
-        sendCsv(
-          res,
-          'utilisation',
-          ['machine', 'machine_name', 'from', 'to', ...SECONDS_COLUMNS.map((k) => `${k}_s`)],
-          machines.map((m) => [
-            m.machine,
-            m.machineName,
-            iso(from),
-            iso(until),
-            ...SECONDS_COLUMNS.map((k) => m.seconds[k]),
-          ]),
-        );
-        return;
-      }
-      case 'stops': {
-        const { from, to } = range(p);
-        const stops = store
-          .stops({ machines: allowed, machine: machineParam(pr, p), from, to })
-          .map((s) => ({ alarm: s.alarm, count: s.count, seconds: seconds(s.ms), machines: s.machines }));
-        if (!csv) {
-          sendJson(res, 200, { from, to, stops });
-          return;
-        }
-        sendCsv(
-          res,
-          'stops',
-          ['alarm', 'count', 'seconds', 'machines'],
-          stops.map((s) => [s.alarm, s.count, s.seconds, s.machines.join(' ')]),
-        );
-        return;
-      }
-      case 'shift-report': {
-        const date = p.get('date') || localDay(ctx.now());
-        if (!parseDate(date)) throw new BadRequest('date: YYYY-MM-DD');
-        const shifts = historySettings().shifts;
-        const name = p.get('shift');
-        const shift = shifts.find((s) => s.name === name);
-        if (!shift)
-          throw new NotFound(
-            `shift: one of ${shifts.map((s) => JSON.stringify(s.name)).join(', ') || '(no shifts are set)'}`,
-          );
-        const w = shiftWindow(date, shift);
-        if (!w) throw new BadRequest('date: YYYY-MM-DD');
-        const only = machineParam(pr, p);
-        const q = { machines: allowed, machine: only, from: w.from, to: w.to };
-        const until = Math.max(w.from, Math.min(w.to, ctx.now()));
-        const u = store.utilisation(q);
-        const counts = store.jobCounts(q);
-        const zeroJobs = (): JobCounts => ({
-          finished: 0,
-          cancelled: 0,
-          failed: 0,
-          unknown: 0,
-          inProgress: 0,
-        });
-        const totals = { seconds: { ...emptyLike(), unrecorded: 0 }, jobs: zeroJobs() };
-        const machines = machineList(pr, store, only).map((id) => {
-          const s = u.get(id) ?? { ...emptyLike(), unrecorded: until - w.from };
-          const j = counts.get(id) ?? zeroJobs();
-          for (const k of SECONDS_COLUMNS) totals.seconds[k] += s[k];
-          for (const k of Object.keys(j) as Array<keyof JobCounts>) totals.jobs[k] += j[k];
-          return { ...machineInfo(id), seconds: secondsOf(s), jobs: j };
-        });
-        const body = {
-          date,
-          shift,
-          from: w.from,
-          to: w.to,
-          spanS: seconds(until - w.from),
-          machines,
-          totals: { seconds: secondsOf(totals.seconds), jobs: totals.jobs },
-        };
-        if (!csv) {
-          sendJson(res, 200, body);
-          return;
-        }
-        const jobKeys = ['finished', 'cancelled', 'failed', 'unknown', 'inProgress'] as const;
-        sendCsv(
-          res,
-          `shift-${date}-${shift.name.replace(/[^A-Za-z0-9_-]/g, '_')}`,
-          [
-            'date',
-            'shift',
-            'machine',
-            'machine_name',
-            ...SECONDS_COLUMNS.map((k) => `${k}_s`),
-            ...jobKeys.map((k) => (k === 'inProgress' ? 'jobs_in_progress' : `jobs_${k}`)),
-          ],
-          machines.map((m) => [
-            date,
-            shift.name,
-            m.machine,
-            m.machineName,
-            ...SECONDS_COLUMNS.map((k) => m.seconds[k]),
-            ...jobKeys.map((k) => m.jobs[k]),
-          ]),
-        );
-        return;
-      }
-      case 'touchcut-stats': {
-        const from = p.get('from') || undefined;
-        const to = p.get('to') || undefined;
-        for (const [k, v] of [
-          ['from', from],
-          ['to', to],
-        ] as const)
-          if (v !== undefined && !parseDate(v)) throw new BadRequest(`${k}: YYYY-MM-DD`);
-        const days = store
-          .touchcutDays({ machines: allowed, machine: machineParam(pr, p), from, to })
-          .map((d) => ({ ...d, machineName: byId.get(d.machine)?.name ?? d.machine }));
-        if (!csv) {
-          sendJson(res, 200, { days });
-          return;
-        }
-        sendCsv(
-          res,
-          'touchcut-stats',
-          [
-            'machine',
-            'machine_name',
-            'day',
-            'sessions',
-            'active_s',
-            'productive_s',
-            'unproductive_s',
-            'error_s',
-            'idle_s',
-            'tool_on_s',
-            'programs',
-            'errors',
-            'pulled',
-          ],
-          days.map((d) => {
-            const s = statsSchema.safeParse(d.stats);
-            const sum = (
-              k:
-                | 'activeTime'
-                | 'productiveTime'
-                | 'unproductiveTime'
-                | 'errorTime'
-                | 'idleTime'
-                | 'toolOnTime',
-            ) => (s.success ? s.data.sessions.reduce((a, x) => a + (x[k] ?? 0), 0) : null);
-            return [
-              d.machine,
-              d.machineName,
-              d.day,
-              s.success ? s.data.sessions.length : null,
-              sum('activeTime'),
-              sum('productiveTime'),
-              sum('unproductiveTime'),
-              sum('errorTime'),
-              sum('idleTime'),
-              sum('toolOnTime'),
-              s.success ? s.data.programs.length : null,
-              s.success ? s.data.errors.length : null,
-              iso(d.pulledAt),
-            ];
-          }),
-        );
-        return;
-      }
-      case 'info': {
-        if (csv) throw new NotFound('no CSV of the info');
-        const i = store.info();
-        sendJson(res, 200, {
-          sizeBytes: i.sizeBytes,
-          schemaVersion: i.schemaVersion,
-          oldest: { jobAt: i.oldest.job, stateAt: i.oldest.state, touchcutDay: i.oldest.touchcutDay },
-          counts: i.counts,
-          ...historySettings(),
-        });
-        return;
-      }
-      default:
-        throw new NotFound(`no such endpoint: GET /api/history/${route}`);
-    }
-  }
-
-  function historySettings(): { shifts: Shift[]; retention: Retention } {
-    return history.settings();
-  }
+  const { who, needLogin, config } = ctx;
 
   return async function historyApi(req: IncomingMessage, res: ServerResponse, url: URL): Promise<void> {
     req.resume();
@@ -453,7 +28,8 @@ export function createHistoryApi(ctx: GatewayContext, history: History) {
       return;
     }
     const store = history.store;
-    if (!store) {
+    const reads = history.reads;
+    if (!store || !reads) {
       sendJson(res, 503, {
         error: `the production history is not available: ${history.problem ?? 'not opened'}`,
       });
@@ -461,16 +37,24 @@ export function createHistoryApi(ctx: GatewayContext, history: History) {
     }
     const csv = url.pathname.endsWith('.csv');
     const route = url.pathname.slice('/api/history/'.length).replace(/\.csv$/, '');
-    try {
-      answer(route, csv, w.principal, url.searchParams, store, res);
-    } catch (e) {
-      if (e instanceof BadRequest) sendJson(res, 400, { error: e.message });
-      else if (e instanceof NotFound) sendJson(res, 404, { error: e.message });
-      else throw e;
-    }
+    const pr = w.principal;
+    // One asker: the user; in open mode (everyone "anonymous") the address.
+    const key = w.mode === 'open' ? `address ${clientAddress(req)}` : `user ${pr.name}`;
+    await reads.answer(
+      key,
+      {
+        route,
+        csv,
+        params: url.searchParams.toString(),
+        env: {
+          now: ctx.now(),
+          machines: config.machines.map((m) => ({ id: m.id, name: m.name, kind: m.kind })),
+          allowed: pr.machines,
+          settings: history.settings(),
+        },
+        live: store.liveJobs(),
+      },
+      res,
+    );
   };
-}
-
-function emptyLike(): Omit<StateSeconds, 'unrecorded'> {
-  return { running: 0, paused: 0, idle: 0, alarm: 0, offline: 0, unknown: 0 };
 }

@@ -4,6 +4,7 @@ import type { AuditEntry } from '../audit';
 import type { Logger } from '../log';
 import type { MachineEntry } from '../machines';
 import type { Retention, SettingsStore, Shift } from '../settings';
+import { HistoryReads } from './reads';
 import { HEARTBEAT_MS, HistoryStore } from './store';
 import { TouchcutStatsPuller } from './touchcut-stats';
 
@@ -19,6 +20,8 @@ const DAY_MS = 86_400_000;
 
 export interface History {
   readonly store: HistoryStore | null;
+  /** The API's reads, off the gateway's thread (reads.ts); null without a store. */
+  readonly reads: HistoryReads | null;
   /** Why there is no store. */
   readonly problem: string | null;
   observe(m: MachineEntry, prev: WatchSummary, next: WatchSummary): void;
@@ -63,21 +66,47 @@ export function createHistory(o: HistoryOptions): History {
       error: problem,
     });
   }
+  const reads = store ? new HistoryReads(file, o.log) : null;
   const byId = new Map(o.machines.map((m) => [m.id, m]));
   const timers: Array<ReturnType<typeof setInterval>> = [];
   let puller: TouchcutStatsPuller | null = null;
 
-  const prune = (): void => {
+  const pruneFailed = (e: unknown): void => {
+    o.log.error('the production history could not be pruned', { error: String(e) });
+  };
+  /** At start, in one go; daily and after a change of the retention, a batch at a time. */
+  const pruneNow = (): void => {
     try {
       store?.prune();
     } catch (e) {
-      o.log.error('the production history could not be pruned', { error: String(e) });
+      pruneFailed(e);
     }
+  };
+  let pruning = false;
+  let again = false;
+  const prune = (): void => {
+    if (!store) return;
+    // One at a time; asked again meanwhile (a new retention): once more after it.
+    if (pruning) {
+      again = true;
+      return;
+    }
+    pruning = true;
+    void store
+      .pruneGently()
+      .catch(pruneFailed)
+      .finally(() => {
+        pruning = false;
+        if (again) {
+          again = false;
+          prune();
+        }
+      });
   };
 
   if (store) {
     const s = store;
-    prune();
+    pruneNow();
     puller = new TouchcutStatsPuller({
       store: s,
       machines: o.machines.filter((m) => m.kind === 'touchcut'),
@@ -101,6 +130,7 @@ export function createHistory(o: HistoryOptions): History {
 
   return {
     store,
+    reads,
     problem,
     observe(m, prev, next) {
       store?.observe(m, prev, {
@@ -120,6 +150,7 @@ export function createHistory(o: HistoryOptions): History {
     close() {
       for (const t of timers) clearInterval(t);
       puller?.stop();
+      reads?.close();
       try {
         store?.close();
       } catch (e) {

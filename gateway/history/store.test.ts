@@ -409,4 +409,31 @@ describe('history: utilisation, stops and retention', () => {
     expect(s.prune()).toMatchObject({ states: 2 });
     expect(s.info().sizeBytes).toBeGreaterThan(0);
   });
+
+  it('a big prune (a shorter retention) goes a batch at a time, letting the thread work in between', async () => {
+    const day = 86_400_000;
+    const { open, clock } = setup();
+    const s = open({ retention: { jobsDays: 365, statesDays: 1 } });
+    const ins = s.db.prepare(
+      "INSERT INTO states (machine, state, alarm, started_at, ended_at) VALUES ('m1', 'idle', NULL, ?, ?)",
+    );
+    const old = clock.now - 10 * day;
+    s.db.transaction(() => {
+      for (let k = 0; k < 22_000; k++) ins.run(old + k, old + k + 1);
+    })();
+    // Turns the event loop gets while it prunes (none if it held the thread throughout).
+    let turns = 0;
+    let going = true;
+    const spin = (): void => {
+      if (!going) return;
+      turns++;
+      setImmediate(spin);
+    };
+    setImmediate(spin);
+    const pruned = await s.pruneGently();
+    going = false;
+    expect(pruned).toEqual({ jobs: 0, states: 22_000, touchcutDays: 0 });
+    expect(turns).toBeGreaterThanOrEqual(4); // 22,000 rows: 5 batches of at most 5000
+    expect(s.info().counts.states).toBe(0);
+  });
 });

@@ -1,9 +1,9 @@
-import { statSync } from 'node:fs';
 import type Database from 'better-sqlite3';
 import type { WatchSummary } from '../../src/fleet/contract';
 import type { Logger } from '../log';
 import { DEFAULT_RETENTION, type Retention } from '../settings';
-import { openHistoryDb, schemaVersion, type Db, type Migration, MIGRATIONS } from './db';
+import { openHistoryDb, type Db, type Migration, MIGRATIONS } from './db';
+import { HistoryReader, type LiveJob as LiveJobView } from './reader';
 import { localDay } from './shifts';
 
 /**
@@ -209,47 +209,6 @@ function isJobState(s: HistoryState): boolean {
   return s === 'running' || s === 'paused';
 }
 
-function emptySeconds(): StateSeconds {
-  return { running: 0, paused: 0, idle: 0, alarm: 0, offline: 0, unknown: 0, unrecorded: 0 };
-}
-
-/** `(machine IN allowed)` for a nullable list, as SQL and parameters. */
-function machineFilter(
-  col: string,
-  machines: readonly string[] | null,
-  machine?: string,
-): [string, unknown[]] {
-  const parts: string[] = [];
-  const params: unknown[] = [];
-  if (machines) {
-    parts.push(`${col} IN (SELECT value FROM json_each(?))`);
-    params.push(JSON.stringify(machines));
-  }
-  if (machine) {
-    parts.push(`${col} = ?`);
-    params.push(machine);
-  }
-  return [parts.length ? parts.join(' AND ') : '1', params];
-}
-
-interface JobDbRow {
-  id: number;
-  machine: string;
-  family: string;
-  name: string | null;
-  started_at: number;
-  ended_at: number | null;
-  outcome: Outcome | null;
-  running_ms: number;
-  paused_ms: number;
-  progress: number | null;
-  started_by: string | null;
-  paused_by: string | null;
-  resumed_by: string | null;
-  stopped_by: string | null;
-  end_alarm: string | null;
-}
-
 export class HistoryStore {
   readonly db: Db;
   readonly file: string;
@@ -263,6 +222,8 @@ export class HistoryStore {
   /** What `recover()` closed when the store opened. */
   readonly recovered: { jobs: number; states: number };
   readonly applied: string[];
+  /** The queries (reader.ts), on this connection. */
+  readonly reader: HistoryReader;
 
   private readonly st: {
     openInterval: Database.Statement;
@@ -282,6 +243,13 @@ export class HistoryStore {
     this.applied = applied;
     if (applied.length) opts.log.info('history database migrated', { file: opts.file, applied });
     this.lastCheckpoint = this.now();
+    this.reader = new HistoryReader({
+      db,
+      file: opts.file,
+      now: this.now,
+      retention: this.retention,
+      live: (machine) => this.liveJob(machine),
+    });
     this.st = {
       openInterval: db.prepare(
         'INSERT INTO states (machine, state, alarm, started_at, ended_at) VALUES (?, ?, ?, ?, NULL)',
@@ -579,28 +547,53 @@ export class HistoryStore {
 
   /** Deletes what is older than the retention (jobs and TouchCut days: `jobsDays`; states: `statesDays`). */
   prune(): { jobs: number; states: number; touchcutDays: number } {
+    const steps = this.pruneSteps();
+    for (;;) {
+      const s = steps.next();
+      if (s.done) return s.value;
+    }
+  }
+
+  /**
+   * `prune()` a batch at a time, letting the gateway's other work in between (a shorter retention
+   * can delete hundreds of thousands of rows: done in one go it would hold the thread for seconds).
+   */
+  async pruneGently(): Promise<{ jobs: number; states: number; touchcutDays: number }> {
+    const steps = this.pruneSteps();
+    for (;;) {
+      const s = steps.next();
+      if (s.done) return s.value;
+      await new Promise((r) => setImmediate(r));
+    }
+  }
+
+  private *pruneBatched(sql: string, param: number | string): Generator<void, number> {
+    let total = 0;
+    for (;;) {
+      if (this.closed) return total;
+      const n = this.db.prepare(sql).run(param, PRUNE_BATCH).changes;
+      total += n;
+      if (n < PRUNE_BATCH) return total;
+      yield;
+    }
+  }
+
+  /** The pruning, yielding after each batch of `PRUNE_BATCH` rows. */
+  private *pruneSteps(): Generator<void, { jobs: number; states: number; touchcutDays: number }> {
     if (this.closed) return { jobs: 0, states: 0, touchcutDays: 0 };
     const r = this.retention();
     const t = this.now();
     const jobsCut = t - r.jobsDays * DAY_MS;
     const statesCut = t - r.statesDays * DAY_MS;
-    const batched = (sql: string, param: number | string): number => {
-      let total = 0;
-      const stmt = this.db.prepare(sql);
-      for (;;) {
-        const n = stmt.run(param, PRUNE_BATCH).changes;
-        total += n;
-        if (n < PRUNE_BATCH) return total;
-      }
-    };
-    const jobs = batched(
+    const jobs = yield* this.pruneBatched(
       'DELETE FROM jobs WHERE id IN (SELECT id FROM jobs WHERE ended_at IS NOT NULL AND ended_at < ? LIMIT ?)',
       jobsCut,
     );
-    const states = batched(
+    const states = yield* this.pruneBatched(
       'DELETE FROM states WHERE id IN (SELECT id FROM states WHERE ended_at IS NOT NULL AND ended_at < ? LIMIT ?)',
       statesCut,
     );
+    if (this.closed) return { jobs, states, touchcutDays: 0 };
     const touchcutDays = this.db
       .prepare('DELETE FROM touchcut_days WHERE day < ?')
       .run(localDay(jobsCut)).changes;
@@ -649,298 +642,69 @@ export class HistoryStore {
     return new Set(rows);
   }
 
-  touchcutDays(q: {
-    machines: readonly string[] | null;
-    machine?: string;
-    from?: string;
-    to?: string;
-  }): TouchcutDay[] {
-    const [where, params] = machineFilter('machine', q.machines, q.machine);
-    const rows = this.db
-      .prepare(
-        `SELECT machine, day, pulled_at, stats FROM touchcut_days
-         WHERE ${where} AND day >= ? AND day < ? ORDER BY day DESC, machine LIMIT 5000`,
-      )
-      .all(...params, q.from ?? '0000-00-00', q.to ?? '9999-99-99') as Array<{
-      machine: string;
-      day: string;
-      pulled_at: number;
-      stats: string;
-    }>;
-    return rows.map((r) => ({
-      machine: r.machine,
-      day: r.day,
-      pulledAt: r.pulled_at,
-      stats: JSON.parse(r.stats) as unknown,
-    }));
+  // ------------------------------------------------------------------------------ queries (reader.ts)
+
+  /** A machine's open job as counted in memory (the queries count it up to now). */
+  liveJob(machine: string): LiveJobView | undefined {
+    const l = this.live.get(machine);
+    if (!l?.job) return undefined;
+    const j = l.job;
+    return {
+      state: l.state,
+      job: {
+        id: j.id,
+        name: j.name,
+        countedTo: j.countedTo,
+        runningMs: j.runningMs,
+        pausedMs: j.pausedMs,
+        progress: j.progress,
+      },
+    };
   }
 
-  // ------------------------------------------------------------------------------ queries
-
-  private jobRow(r: JobDbRow, t: number): JobRow {
-    let runningMs = r.running_ms;
-    let pausedMs = r.paused_ms;
-    let progress = r.progress;
-    let name = r.name;
-    // An open job: counted up to now from what is in memory.
-    const live = r.ended_at === null ? this.live.get(r.machine) : undefined;
-    if (live?.job?.id === r.id) {
-      const d = Math.max(0, t - live.job.countedTo);
-      runningMs = live.job.runningMs + (live.state === 'running' ? d : 0);
-      pausedMs = live.job.pausedMs + (live.state === 'paused' ? d : 0);
-      progress = live.job.progress;
-      name = live.job.name;
+  /** Every open job as counted in memory, by machine: what a read worker needs to count them. */
+  liveJobs(): Record<string, LiveJobView> {
+    const out: Record<string, LiveJobView> = {};
+    for (const m of this.live.keys()) {
+      const j = this.liveJob(m);
+      if (j) out[m] = j;
     }
-    return {
-      id: r.id,
-      machine: r.machine,
-      family: r.family,
-      name,
-      startedAt: r.started_at,
-      endedAt: r.ended_at,
-      outcome: r.outcome,
-      runningMs,
-      pausedMs,
-      progress,
-      startedBy: r.started_by,
-      pausedBy: r.paused_by,
-      resumedBy: r.resumed_by,
-      stoppedBy: r.stopped_by,
-      endAlarm: r.end_alarm,
-    };
+    return out;
+  }
+
+  touchcutDays(q: Parameters<HistoryReader['touchcutDays']>[0]): TouchcutDay[] {
+    return this.reader.touchcutDays(q);
   }
 
   jobs(q: JobQuery): { jobs: JobRow[]; total: number } {
-    let source = 'jobs';
-    let params: unknown[] = [];
-    const parts: string[] = [];
-    if (q.from !== undefined) {
-      [source, params] = this.overlapping('jobs', q, q.from, q.to ?? Number.MAX_SAFE_INTEGER, '>=');
-      source = `(${source})`;
-    } else {
-      const [where, p] = machineFilter('machine', q.machines, q.machine);
-      parts.push(where);
-      params.push(...p);
-      if (q.to !== undefined) {
-        parts.push('started_at < ?');
-        params.push(q.to);
-      }
-    }
-    if (q.family) {
-      parts.push('family = ?');
-      params.push(q.family);
-    }
-    if (q.outcome === 'open') parts.push('ended_at IS NULL');
-    else if (q.outcome) {
-      parts.push('outcome = ?');
-      params.push(q.outcome);
-    }
-    if (q.q) {
-      const like = `%${q.q.replace(/[\\%_]/g, (c) => `\\${c}`)}%`;
-      parts.push(
-        `(${['name', 'started_by', 'paused_by', 'resumed_by', 'stopped_by', 'end_alarm']
-          .map((c) => `${c} LIKE ? ESCAPE '\\'`)
-          .join(' OR ')})`,
-      );
-      for (let i = 0; i < 6; i++) params.push(like);
-    }
-    const w = parts.length ? parts.join(' AND ') : '1';
-    const total = Number(
-      this.db
-        .prepare(`SELECT COUNT(*) FROM ${source} WHERE ${w}`)
-        .pluck()
-        .get(...params),
-    );
-    const rows = this.db
-      .prepare(`SELECT * FROM ${source} WHERE ${w} ORDER BY started_at DESC, id DESC LIMIT ? OFFSET ?`)
-      .all(...params, q.limit ?? 100, q.offset ?? 0) as JobDbRow[];
-    const t = this.now();
-    return { jobs: rows.map((r) => this.jobRow(r, t)), total };
+    return this.reader.jobs(q);
   }
 
-  /**
-   * The rows of `table` (states or jobs) overlapping [from, to) of the machines asked for, as a
-   * subquery with its parameters: those that start in the range (an index range), and each
-   * machine's last one before it if it reaches into the range (one index lookup per machine: a
-   * machine's intervals, and its jobs, never overlap). Not a scan of everything before `to`.
-   * `reaches`: `>` for intervals (one ending at `from` is not in it), `>=` for jobs.
-   */
-  private overlapping(
-    table: 'states' | 'jobs',
-    q: { machines: readonly string[] | null; machine?: string },
-    from: number,
-    to: number,
-    reaches: '>' | '>=',
-  ): [string, unknown[]] {
-    const [inRange, p1] = machineFilter('machine', q.machines, q.machine);
-    const [perMachine, p2] = machineFilter('l.machine', q.machines, q.machine);
-    const sql = `SELECT * FROM ${table} WHERE started_at >= ? AND started_at < ? AND ${inRange}
-      UNION ALL
-      SELECT * FROM ${table} WHERE id IN (
-        SELECT (SELECT x.id FROM ${table} x WHERE x.machine = l.machine AND x.started_at < ?
-                ORDER BY x.started_at DESC, x.id DESC LIMIT 1)
-        FROM last_seen l WHERE ${perMachine})
-      AND (ended_at ${reaches} ? OR ended_at IS NULL)`;
-    return [sql, [from, to, ...p1, from, ...p2, from]];
+  states(q: RangeQuery, max?: number): { intervals: Interval[]; truncated: boolean } {
+    return this.reader.states(q, max);
   }
 
-  /** The end of a range as far as it has happened. */
-  private until(to: number): number {
-    return Math.min(to, this.now());
-  }
-
-  /** The state intervals overlapping [from, to), clipped; open ones end now. At most `max`. */
-  states(q: RangeQuery, max = 50_000): { intervals: Interval[]; truncated: boolean } {
-    const t = this.now();
-    const to = this.until(q.to);
-    if (to <= q.from) return { intervals: [], truncated: false };
-    const [sub, params] = this.overlapping('states', q, q.from, to, '>');
-    const rows = this.db
-      .prepare(
-        `SELECT machine, state, alarm, started_at, ended_at FROM (${sub})
-         ORDER BY machine, started_at, id LIMIT ?`,
-      )
-      .all(...params, max + 1) as Array<{
-      machine: string;
-      state: HistoryState;
-      alarm: string | null;
-      started_at: number;
-      ended_at: number | null;
-    }>;
-    const truncated = rows.length > max;
-    return {
-      truncated,
-      intervals: rows.slice(0, max).map((r) => ({
-        machine: r.machine,
-        state: r.state,
-        alarm: r.alarm,
-        from: Math.max(r.started_at, q.from),
-        to: Math.min(r.ended_at ?? t, to),
-        open: r.ended_at === null,
-      })),
-    };
-  }
-
-  /** Per machine: ms in each state within [from, to) (to clipped to now; open intervals count to now). */
   utilisation(q: RangeQuery): Map<string, StateSeconds> {
-    const t = this.now();
-    const to = this.until(q.to);
-    const out = new Map<string, StateSeconds>();
-    if (to <= q.from) return out;
-    const [sub, params] = this.overlapping('states', q, q.from, to, '>');
-    const rows = this.db
-      .prepare(
-        `SELECT machine, state, SUM(MIN(COALESCE(ended_at, ?), ?) - MAX(started_at, ?)) AS ms
-         FROM (${sub}) GROUP BY machine, state`,
-      )
-      .all(t, to, q.from, ...params) as Array<{
-      machine: string;
-      state: HistoryState;
-      ms: number;
-    }>;
-    for (const r of rows) {
-      const s = out.get(r.machine) ?? emptySeconds();
-      s[r.state] += r.ms;
-      out.set(r.machine, s);
-    }
-    for (const s of out.values()) {
-      const known = STATES.reduce((a, k) => a + s[k], 0);
-      s.unrecorded = Math.max(0, to - q.from - known);
-    }
-    return out;
+    return this.reader.utilisation(q);
   }
 
-  /** Alarm intervals overlapping the range, by alarm text: how many, how long (clipped), on which machines. */
-  stops(q: RangeQuery, limit = 50): StopReason[] {
-    const t = this.now();
-    const to = this.until(q.to);
-    if (to <= q.from) return [];
-    const [sub, params] = this.overlapping('states', q, q.from, to, '>');
-    const rows = this.db
-      .prepare(
-        `SELECT alarm, COUNT(*) AS count, SUM(MIN(COALESCE(ended_at, ?), ?) - MAX(started_at, ?)) AS ms,
-                json_group_array(DISTINCT machine) AS machines
-         FROM (${sub}) WHERE state = 'alarm'
-         GROUP BY alarm ORDER BY ms DESC, count DESC LIMIT ?`,
-      )
-      .all(t, to, q.from, ...params, limit) as Array<{
-      alarm: string | null;
-      count: number;
-      ms: number;
-      machines: string;
-    }>;
-    return rows.map((r) => ({
-      alarm: r.alarm,
-      count: r.count,
-      ms: r.ms,
-      machines: (JSON.parse(r.machines) as string[]).sort(),
-    }));
+  stops(q: RangeQuery, limit?: number): StopReason[] {
+    return this.reader.stops(q, limit);
   }
 
-  /** Per machine: jobs that ended in [from, to) by outcome, and those in progress at its end. */
   jobCounts(q: RangeQuery): Map<string, JobCounts> {
-    const [where, params] = machineFilter('machine', q.machines, q.machine);
-    const out = new Map<string, JobCounts>();
-    const get = (m: string): JobCounts => {
-      let c = out.get(m);
-      if (!c) {
-        c = { finished: 0, cancelled: 0, failed: 0, unknown: 0, inProgress: 0 };
-        out.set(m, c);
-      }
-      return c;
-    };
-    const ended = this.db
-      .prepare(
-        `SELECT machine, outcome, COUNT(*) AS n FROM jobs
-         WHERE ${where} AND ended_at >= ? AND ended_at < ? GROUP BY machine, outcome`,
-      )
-      .all(...params, q.from, q.to) as Array<{ machine: string; outcome: Outcome; n: number }>;
-    for (const r of ended) get(r.machine)[r.outcome] += r.n;
-    // Open at the window's end: each machine's last job started before it, if it had not ended.
-    const [atEnd, endParams] = this.overlapping('jobs', q, q.to, q.to, '>=');
-    const going = this.db
-      .prepare(`SELECT machine, COUNT(*) AS n FROM (${atEnd}) GROUP BY machine`)
-      .all(...endParams) as Array<{ machine: string; n: number }>;
-    for (const r of going) get(r.machine).inProgress += r.n;
-    return out;
+    return this.reader.jobCounts(q);
   }
 
-  /** The machines with any record (for a supervisor's list beyond the machines file). */
   machinesRecorded(): string[] {
-    return this.db.prepare('SELECT machine FROM last_seen ORDER BY 1').pluck().all() as string[];
+    return this.reader.machinesRecorded();
   }
 
-  /** The database file and its write-ahead log, bytes. */
   sizeBytes(): number {
-    let size = 0;
-    for (const f of [this.file, `${this.file}-wal`]) {
-      try {
-        size += statSync(f).size;
-      } catch {
-        /* no WAL right now */
-      }
-    }
-    return size;
+    return this.reader.sizeBytes();
   }
 
   info(): HistoryInfo {
-    const size = this.sizeBytes();
-    const one = (sql: string): unknown => this.db.prepare(sql).pluck().get();
-    return {
-      file: this.file,
-      sizeBytes: size,
-      schemaVersion: schemaVersion(this.db),
-      oldest: {
-        job: (one('SELECT MIN(started_at) FROM jobs') as number | null) ?? null,
-        state: (one('SELECT MIN(started_at) FROM states') as number | null) ?? null,
-        touchcutDay: (one('SELECT MIN(day) FROM touchcut_days') as string | null) ?? null,
-      },
-      counts: {
-        jobs: Number(one('SELECT COUNT(*) FROM jobs')),
-        states: Number(one('SELECT COUNT(*) FROM states')),
-        touchcutDays: Number(one('SELECT COUNT(*) FROM touchcut_days')),
-      },
-      retention: this.retention(),
-    };
+    return this.reader.info();
   }
 }
