@@ -4,6 +4,7 @@ import type { EventEmitter } from 'node:events';
 import type {
   HeldCredentials,
   HeldIntercept,
+  HeldSend,
   HeldSessionHooks,
   UpstreamAnswer,
   UpstreamRequest,
@@ -29,7 +30,9 @@ import { unreachableReason } from './log';
  *   the key (wrong credentials get the controller's refusal as it is); "close" (disconnect) gets
  *   204 and the shared session stays, or ends with it (`end`: a logout); "exchange" (TouchCut's
  *   password change) is sent by the gateway with its key, and a new key in the answer is kept and
- *   taken out of it; "answer" is answered as it is.
+ *   taken out of it; "answer" is answered as it is; "relay" is answered by the family from
+ *   requests of its own with the key (RepRapFirmware's G-code replies: fetched by the gateway
+ *   alone, each page given its own).
  * - Every forwarded request: whatever key the browser sent is dropped, the gateway's is added
  *   (`apply`, `applyWs`). When the controller says the key expired (`isExpired`): with `expiry`
  *   'reopen' (default) the key is renewed with the configured or typed password (kept in memory
@@ -526,6 +529,9 @@ export class HeldSession {
       case 'exchange':
         await this.exchange(r, res);
         return;
+      case 'relay':
+        await this.relay(i.run, res);
+        return;
       case 'open':
         break;
     }
@@ -545,6 +551,54 @@ export class HeldSession {
         this.answer ?? { status: 200, headers: { 'content-type': 'application/json' }, body: '{}' },
       );
     else this.refuse(res, o);
+  }
+
+  /**
+   * A "relay": the family answers from requests of its own, each with the session's key (opened
+   * first when there is none), never retried; a key the controller calls expired is renewed for
+   * the next request. The answer goes out as the session's other answers do (redacted, content
+   * type only), unless a deadline answered the browser first.
+   */
+  private async relay(run: (send: HeldSend) => Promise<UpstreamAnswer>, res: ServerResponse): Promise<void> {
+    let refused = null as Failure | null;
+    const send: HeldSend = async (method, path, query) => {
+      const e = await this.ensure();
+      if (!e.ok) {
+        refused = e;
+        throw new Error(`no session with ${this.m.name}`);
+      }
+      const headers: Record<string, string> = {};
+      const q = new URLSearchParams(query);
+      this.hooks.apply({ headers, query: q }, e.key);
+      this.ctx.opts.families[this.m.kind]?.gateway?.injectSecrets?.(
+        { method, path, headers, query: q },
+        this.m.secrets,
+      );
+      const qs = q.toString();
+      this.inFlight++;
+      this.lastUpstreamAt = Date.now();
+      let a: UpstreamAnswer;
+      try {
+        a = await upstreamRequest(this.ctx, this.m, method, path + (qs ? `?${qs}` : ''), headers);
+      } catch (err) {
+        refused = this.unreachable(err, `${method} ${path}`);
+        throw err;
+      } finally {
+        this.inFlight--;
+        this.touch();
+      }
+      if (this.hooks.isExpired(a.status, { method, path })) this.expired(e.key);
+      return a;
+    };
+    let a: UpstreamAnswer;
+    try {
+      a = await run(send);
+    } catch (err) {
+      const f: Failure = refused ?? this.unreachable(err, 'relaying a request');
+      if (!res.headersSent && !res.destroyed) this.refuse(res, f);
+      return;
+    }
+    if (!res.headersSent && !res.destroyed) this.write(res, a);
   }
 
   /**

@@ -307,7 +307,17 @@ export type HeldIntercept =
    */
   | { kind: 'exchange' }
   /** Answered as it is, never forwarded (a method the controller's login resource does not have). */
-  | { kind: 'answer'; answer: UpstreamAnswer };
+  | { kind: 'answer'; answer: UpstreamAnswer }
+  /**
+   * Answered by the family from requests of its own through the held session (`send`: the key
+   * applied, never retried; an expired key is renewed for the next one). What a controller hands
+   * out once for all its clients (RepRapFirmware's G-code replies) is fetched by the gateway alone
+   * and given to each page as its own (the Duet family's `replies.ts`).
+   */
+  | { kind: 'relay'; run(send: HeldSend): Promise<UpstreamAnswer> };
+
+/** One request of the gateway's own with the held session's key (a `relay` intercept). */
+export type HeldSend = (method: string, path: string, query?: URLSearchParams) => Promise<UpstreamAnswer>;
 
 export type HeldOpen =
   /** `key` null: the controller wants none (no password protection, no user logged in). `answer` never holds the key. */

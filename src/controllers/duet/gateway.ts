@@ -1,4 +1,5 @@
 import type { HeldSessionHooks, UpstreamAnswer } from '../../fleet/contract';
+import { RrfReplies } from './replies';
 
 /**
  * The gateway holds the DSF session (gateway/held-session.ts): a session key lets whoever has it
@@ -164,8 +165,31 @@ export function duetHeldSessionFor(
   const learn = (a: DuetApi) => {
     state.api = a;
   };
+  const replies = new RrfReplies();
   const hooks: HeldSessionHooks = {
     ...base,
+    /**
+     * Besides connect and disconnect: every `rr_reply` (any method, any spelling, with or without
+     * a query) is the gateway's, never the board's (`replies.ts`: RRF's one reply buffer is used
+     * up by whoever asks first); `GET rr_gcode` is sent by the gateway, whose answer carries the
+     * ticket of its reply. A DSF board (whose `rr_*` emulation is not used) gets neither.
+     */
+    intercept(req) {
+      const r = routeOf(req.path);
+      if (r === '/rr_reply')
+        return {
+          kind: 'relay',
+          run: async (send) => {
+            if (state.api === null) await replies.sync(send).catch(() => undefined);
+            return state.api === 'dsf'
+              ? json(404, JSON.stringify({ error: 'rr_reply is not used with DSF' }))
+              : replies.ask(send, req.query);
+          },
+        };
+      if (r === '/rr_gcode' && req.method.toUpperCase() === 'GET' && state.api !== 'dsf')
+        return { kind: 'relay', run: (send) => replies.code(send, req.query) };
+      return base.intercept(req);
+    },
     async open(upstream, credentials) {
       if (state.api !== 'dsf') {
         const q = new URLSearchParams({
