@@ -211,6 +211,12 @@ export interface WatchSummary {
    * when unknown. The job history keeps the last value a job had.
    */
   progress?: number | null;
+  /**
+   * Why the watch could not read the machine's answer (it answered, but not what the family reads:
+   * a web page, a 404, a model that does not validate): the machine is "not read by the server",
+   * its last reading no longer current. Null or absent: read. Set by the watch, never by a family.
+   */
+  unread?: string | null;
 }
 
 /** What a frame of a watched stream says: part of a summary, and alarms it raised (a frame cannot clear). */

@@ -326,8 +326,29 @@ export function duetSharingFor(state: DuetApiState, base: SharingHints = duetSha
     get streams() {
       return standalone() ? [] : base.streams;
     },
-    get watch() {
-      return standalone() ? rrfWatch : base.watch;
+    watch: watchFor(state, base.watch),
+  };
+}
+
+/**
+ * One machine's watch, following what its session learned (`state.api`, read at every poll): the
+ * `rr_model` poll of a standalone board, DSF's model poll and socket, and, while the API is not
+ * known yet, DSF's poll without the socket: that first read opens the gateway's session, whose
+ * probe learns the API, and the watch reads again at once with the poll of the API it learned
+ * (gateway/watch.ts), then holds DSF's socket if it is DSF. The interval is the family's
+ * (`base.everyMs`) for both.
+ */
+function watchFor(state: DuetApiState, base: WatchDecl | undefined): WatchDecl | undefined {
+  if (!base) return undefined;
+  return {
+    get everyMs() {
+      return base.everyMs;
+    },
+    get poll() {
+      return state.api === 'standalone' ? rrfWatch.poll : base.poll;
+    },
+    get stream() {
+      return state.api === 'dsf' ? base.stream : undefined;
     },
   };
 }

@@ -35,6 +35,8 @@ import { DuetSimulator, type DuetSimOptions } from './simulator';
  * - Files: `rr_upload` (raw body, `crc32` checked: `{"err":1}` on a mismatch), `rr_download`,
  *   `rr_filelist` (paged by FILELIST_PAGE, `next`), `rr_fileinfo`, `rr_thumbnail` (paged),
  *   `rr_delete`, `rr_move`, `rr_mkdir`.
+ * - Any path that is not `rr_*` (a DSF path such as `/machine/model`): the web page, HTML, 200, as
+ *   RRF's web server serves its `www` folder.
  */
 
 export const MAX_SESSIONS = 8;
@@ -44,6 +46,11 @@ export const FILELIST_PAGE = 8;
 /** Base64 characters per `rr_thumbnail` answer. */
 export const THUMBNAIL_PAGE = 1024;
 export const GCODE_BUFFER = 255;
+
+/** What a standalone board answers to any path that is not `rr_*`: its web page (DWC's). */
+export const WEB_PAGE =
+  '<!DOCTYPE html><html lang="en"><head><meta charset="utf-8"><title>Duet Web Control</title></head>' +
+  '<body><noscript>Duet Web Control needs JavaScript.</noscript><div id="app"></div></body></html>';
 
 /** Parts a standalone board does not have (DSF only). */
 const NOT_STANDALONE = new Set(['messages', 'plugins', 'sbc']);
@@ -169,7 +176,9 @@ export class RrfSimulator implements Simulator {
       if (query.get('sessionKey') === 'yes') answer['sessionKey'] = Number(key);
       return jsonResponse(answer);
     }
-    if (!pathname.startsWith('/rr_')) return new Response(null, { status: 404 });
+    // Not the rr_* API (`/machine/model`, `/`, `/anything`): RRF's web server answers with its
+    // web page (the card's `0:/www/index.html`, Duet Web Control), 200, never a model.
+    if (!pathname.startsWith('/rr_')) return textResponse(WEB_PAGE, 200, 'text/html');
     const key = req.headers.get('X-Session-Key');
     const session = key !== null ? this.sessions.get(key) : undefined;
     if (key === null || !session) return textResponse('{"err":"not authorized"}', 401, 'application/json');
