@@ -9,6 +9,7 @@ import type {
   UpstreamAnswer,
   UpstreamRequest,
 } from '../src/fleet/contract';
+import type { Role } from '../src/fleet/types';
 import { safeAnswerHeaders } from './answer-headers';
 import type { GatewayContext } from './context';
 import { BodyTooLarge, readBody, sendJson } from './http-util';
@@ -128,9 +129,15 @@ export async function upstreamRequest(
   method: string,
   pathAndQuery: string,
   headers: Record<string, string> = {},
-  opts: { detached?: boolean; body?: string | Buffer } = {},
+  opts: {
+    detached?: boolean;
+    body?: string | Buffer;
+    /** The answer's body handed over as it comes (not kept, not bounded); false stops reading. */
+    onData?: (chunk: Uint8Array) => boolean;
+  } = {},
 ): Promise<UpstreamAnswer> {
   const body = method === 'GET' || method === 'HEAD' ? undefined : opts.body;
+  const onData = opts.onData;
   // Simulators and serial boards (the gateway's own bridge) answer in process.
   if (m.simulated || m.serial) {
     const sim = ctx.simulatorFor(m);
@@ -147,6 +154,18 @@ export async function upstreamRequest(
     r.headers.forEach((v, k) => {
       h[k.toLowerCase()] = v;
     });
+    if (onData && r.body) {
+      const reader = r.body.getReader();
+      for (;;) {
+        const { done, value } = await reader.read();
+        if (done) break;
+        if (!onData(value)) {
+          await reader.cancel();
+          break;
+        }
+      }
+      return { status: r.status, headers: h, body: '' };
+    }
     return { status: r.status, headers: h, body: await r.text() };
   }
   const target = m.url;
@@ -199,6 +218,30 @@ export async function upstreamRequest(
       ctx.reachability.up(m.id);
       const chunks: Buffer[] = [];
       let size = 0;
+      if (onData) {
+        let stopped = false;
+        const answer = (): UpstreamAnswer => ({
+          status: res.statusCode ?? 502,
+          headers: flatHeaders(res.headers),
+          body: '',
+        });
+        res.on('data', (c: Buffer) => {
+          if (stopped || onData(c)) return;
+          stopped = true;
+          settle();
+          resolve(answer());
+          req.destroy();
+        });
+        res.on('end', () => {
+          settle();
+          resolve(answer());
+        });
+        res.on('error', (e) => {
+          settle();
+          if (!stopped) reject(e);
+        });
+        return;
+      }
       res.on('data', (c: Buffer) => {
         size += c.length;
         if (size > MAX_ANSWER) {
@@ -561,7 +604,10 @@ export class HeldSession {
    */
   private async relay(run: (send: HeldSend) => Promise<UpstreamAnswer>, res: ServerResponse): Promise<void> {
     let refused = null as Failure | null;
-    const send: HeldSend = async (method, path, query) => {
+    const send: HeldSend = async (method, path, query, opts = {}) => {
+      // The browser's answer is out (its deadline, a page that left): nothing more is sent.
+      if (res.headersSent || res.destroyed || res.writableEnded)
+        throw new Error('not sent: the console stopped waiting');
       const e = await this.ensure();
       if (!e.ok) {
         refused = e;
@@ -579,7 +625,7 @@ export class HeldSession {
       this.lastUpstreamAt = Date.now();
       let a: UpstreamAnswer;
       try {
-        a = await upstreamRequest(this.ctx, this.m, method, path + (qs ? `?${qs}` : ''), headers);
+        a = await upstreamRequest(this.ctx, this.m, method, path + (qs ? `?${qs}` : ''), headers, opts);
       } catch (err) {
         refused = this.unreachable(err, `${method} ${path}`);
         throw err;
@@ -772,13 +818,19 @@ export async function holdHttp(
   m: MachineEntry,
   req: IncomingMessage,
   res: ServerResponse,
-  r: HeldRequest & { body?: Buffer | null },
+  r: HeldRequest & { body?: Buffer | null; role?: Role | undefined },
   done: (r: { status?: number; error?: string }) => void,
 ): Promise<'answered' | HeldHttp | null> {
   const hooks = hooksOf(ctx, m);
   if (!hooks) return null;
   const s = sessionOf(ctx, m, hooks);
-  const i = hooks.intercept({ method: r.method, path: r.path, query: r.query });
+  const i = hooks.intercept({
+    method: r.method,
+    path: r.path,
+    query: r.query,
+    ...(r.role ? { role: r.role } : {}),
+    ...(r.body ? { body: r.body.toString('utf8') } : {}),
+  });
   if (i) {
     const wantsBody = (i.kind === 'open' && i.fromBody !== undefined) || i.kind === 'exchange';
     let body = r.body ?? null;

@@ -323,7 +323,16 @@ export type HeldIntercept =
   | { kind: 'relay'; run(send: HeldSend): Promise<UpstreamAnswer> };
 
 /** One request of the gateway's own with the held session's key (a `relay` intercept). */
-export type HeldSend = (method: string, path: string, query?: URLSearchParams) => Promise<UpstreamAnswer>;
+export type HeldSend = (
+  method: string,
+  path: string,
+  query?: URLSearchParams,
+  /**
+   * `body`: the request body. `onData`: the answer's body is handed over as it comes instead of
+   * kept (no size bound; the answer's `body` is then ""); returning false stops reading it.
+   */
+  opts?: { body?: string; onData?: (chunk: Uint8Array) => boolean },
+) => Promise<UpstreamAnswer>;
 
 export type HeldOpen =
   /** `key` null: the controller wants none (no password protection, no user logged in). `answer` never holds the key. */
@@ -334,7 +343,15 @@ export type HeldOpen =
 /** A family's declaration that the gateway holds the controller's session (Node-safe, pure). */
 export interface HeldSessionHooks {
   /** Requests the gateway answers itself instead of forwarding them, or null. */
-  intercept(req: { method: string; path: string; query: URLSearchParams }): HeldIntercept | null;
+  intercept(req: {
+    method: string;
+    path: string;
+    query: URLSearchParams;
+    /** The browser's role (absent: the gateway's own request, a read). */
+    role?: Role;
+    /** The request body when the gateway read it to classify it (a G-code body). */
+    body?: string;
+  }): HeldIntercept | null;
   /**
    * The credentials from the machines file the session is opened with (a typed login is then not
    * used). Default: the configured `password`. TouchCut: none (its `apiKey` is no login).
