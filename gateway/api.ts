@@ -81,8 +81,19 @@ export function watchForPage(
   if (!w) return undefined;
   const s = w.summary;
   const { state } = s;
-  if (state === 'unknown') return undefined;
   const text = (t: string | null): string | null => (t === null ? null : scrub(t).slice(0, WATCH_TEXT_MAX));
+  // Answered, but not readable by the server (a web page for a model): said so, its age kept.
+  if (s.unread && state !== 'offline')
+    return {
+      state: 'unread',
+      job: null,
+      progress: null,
+      alarm: null,
+      alarmSeverity: null,
+      unread: text(s.unread),
+      ageMs: w.lastSeen === null ? null : Math.max(0, now - w.lastSeen),
+    };
+  if (state === 'unknown') return undefined;
   return {
     state,
     job: text(s.job),

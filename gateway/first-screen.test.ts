@@ -37,4 +37,23 @@ describe('watchForPage', () => {
     expect(w?.['progress']).toBeNull();
     expect(w?.['ageMs']).toBeNull();
   });
+
+  it('a machine the watch cannot read is "unread" with why (scrubbed, cut), never left out', () => {
+    const w = watchForPage(
+      {
+        summary: {
+          state: 'unknown',
+          alarm: null,
+          job: null,
+          unread: `not JSON (hunter2 ${'<'.repeat(400)})`,
+        },
+        lastSeen: 1000,
+      },
+      3000,
+      scrub,
+    );
+    expect(w).toMatchObject({ state: 'unread', alarm: null, job: null, ageMs: 2000 });
+    expect(String(w?.unread)).toMatch(/^not JSON \(\[secret\] </);
+    expect(String(w?.unread).length).toBe(200);
+  });
 });

@@ -4,10 +4,12 @@ import type { EventEmitter } from 'node:events';
 import type {
   HeldCredentials,
   HeldIntercept,
+  HeldSend,
   HeldSessionHooks,
   UpstreamAnswer,
   UpstreamRequest,
 } from '../src/fleet/contract';
+import type { Role } from '../src/fleet/types';
 import { safeAnswerHeaders } from './answer-headers';
 import type { GatewayContext } from './context';
 import { BodyTooLarge, readBody, sendJson } from './http-util';
@@ -29,7 +31,9 @@ import { unreachableReason } from './log';
  *   the key (wrong credentials get the controller's refusal as it is); "close" (disconnect) gets
  *   204 and the shared session stays, or ends with it (`end`: a logout); "exchange" (TouchCut's
  *   password change) is sent by the gateway with its key, and a new key in the answer is kept and
- *   taken out of it; "answer" is answered as it is.
+ *   taken out of it; "answer" is answered as it is; "relay" is answered by the family from
+ *   requests of its own with the key (RepRapFirmware's G-code replies: fetched by the gateway
+ *   alone, each page given its own).
  * - Every forwarded request: whatever key the browser sent is dropped, the gateway's is added
  *   (`apply`, `applyWs`). When the controller says the key expired (`isExpired`): with `expiry`
  *   'reopen' (default) the key is renewed with the configured or typed password (kept in memory
@@ -125,9 +129,15 @@ export async function upstreamRequest(
   method: string,
   pathAndQuery: string,
   headers: Record<string, string> = {},
-  opts: { detached?: boolean; body?: string | Buffer } = {},
+  opts: {
+    detached?: boolean;
+    body?: string | Buffer;
+    /** The answer's body handed over as it comes (not kept, not bounded); false stops reading. */
+    onData?: (chunk: Uint8Array) => boolean;
+  } = {},
 ): Promise<UpstreamAnswer> {
   const body = method === 'GET' || method === 'HEAD' ? undefined : opts.body;
+  const onData = opts.onData;
   // Simulators and serial boards (the gateway's own bridge) answer in process.
   if (m.simulated || m.serial) {
     const sim = ctx.simulatorFor(m);
@@ -144,6 +154,18 @@ export async function upstreamRequest(
     r.headers.forEach((v, k) => {
       h[k.toLowerCase()] = v;
     });
+    if (onData && r.body) {
+      const reader = r.body.getReader();
+      for (;;) {
+        const { done, value } = await reader.read();
+        if (done) break;
+        if (!onData(value)) {
+          await reader.cancel();
+          break;
+        }
+      }
+      return { status: r.status, headers: h, body: '' };
+    }
     return { status: r.status, headers: h, body: await r.text() };
   }
   const target = m.url;
@@ -196,6 +218,30 @@ export async function upstreamRequest(
       ctx.reachability.up(m.id);
       const chunks: Buffer[] = [];
       let size = 0;
+      if (onData) {
+        let stopped = false;
+        const answer = (): UpstreamAnswer => ({
+          status: res.statusCode ?? 502,
+          headers: flatHeaders(res.headers),
+          body: '',
+        });
+        res.on('data', (c: Buffer) => {
+          if (stopped || onData(c)) return;
+          stopped = true;
+          settle();
+          resolve(answer());
+          req.destroy();
+        });
+        res.on('end', () => {
+          settle();
+          resolve(answer());
+        });
+        res.on('error', (e) => {
+          settle();
+          if (!stopped) reject(e);
+        });
+        return;
+      }
       res.on('data', (c: Buffer) => {
         size += c.length;
         if (size > MAX_ANSWER) {
@@ -526,6 +572,9 @@ export class HeldSession {
       case 'exchange':
         await this.exchange(r, res);
         return;
+      case 'relay':
+        await this.relay(i.run, res);
+        return;
       case 'open':
         break;
     }
@@ -545,6 +594,57 @@ export class HeldSession {
         this.answer ?? { status: 200, headers: { 'content-type': 'application/json' }, body: '{}' },
       );
     else this.refuse(res, o);
+  }
+
+  /**
+   * A "relay": the family answers from requests of its own, each with the session's key (opened
+   * first when there is none), never retried; a key the controller calls expired is renewed for
+   * the next request. The answer goes out as the session's other answers do (redacted, content
+   * type only), unless a deadline answered the browser first.
+   */
+  private async relay(run: (send: HeldSend) => Promise<UpstreamAnswer>, res: ServerResponse): Promise<void> {
+    let refused = null as Failure | null;
+    const send: HeldSend = async (method, path, query, opts = {}) => {
+      // The browser's answer is out (its deadline, a page that left): nothing more is sent.
+      if (res.headersSent || res.destroyed || res.writableEnded)
+        throw new Error('not sent: the console stopped waiting');
+      const e = await this.ensure();
+      if (!e.ok) {
+        refused = e;
+        throw new Error(`no session with ${this.m.name}`);
+      }
+      const headers: Record<string, string> = {};
+      const q = new URLSearchParams(query);
+      this.hooks.apply({ headers, query: q }, e.key);
+      this.ctx.opts.families[this.m.kind]?.gateway?.injectSecrets?.(
+        { method, path, headers, query: q },
+        this.m.secrets,
+      );
+      const qs = q.toString();
+      this.inFlight++;
+      this.lastUpstreamAt = Date.now();
+      let a: UpstreamAnswer;
+      try {
+        a = await upstreamRequest(this.ctx, this.m, method, path + (qs ? `?${qs}` : ''), headers, opts);
+      } catch (err) {
+        refused = this.unreachable(err, `${method} ${path}`);
+        throw err;
+      } finally {
+        this.inFlight--;
+        this.touch();
+      }
+      if (this.hooks.isExpired(a.status, { method, path })) this.expired(e.key);
+      return a;
+    };
+    let a: UpstreamAnswer;
+    try {
+      a = await run(send);
+    } catch (err) {
+      const f: Failure = refused ?? this.unreachable(err, 'relaying a request');
+      if (!res.headersSent && !res.destroyed) this.refuse(res, f);
+      return;
+    }
+    if (!res.headersSent && !res.destroyed) this.write(res, a);
   }
 
   /**
@@ -722,13 +822,19 @@ export async function holdHttp(
   m: MachineEntry,
   req: IncomingMessage,
   res: ServerResponse,
-  r: HeldRequest & { body?: Buffer | null },
+  r: HeldRequest & { body?: Buffer | null; role?: Role | undefined },
   done: (r: { status?: number; error?: string }) => void,
 ): Promise<'answered' | HeldHttp | null> {
   const hooks = hooksOf(ctx, m);
   if (!hooks) return null;
   const s = sessionOf(ctx, m, hooks);
-  const i = hooks.intercept({ method: r.method, path: r.path, query: r.query });
+  const i = hooks.intercept({
+    method: r.method,
+    path: r.path,
+    query: r.query,
+    ...(r.role ? { role: r.role } : {}),
+    ...(r.body ? { body: r.body.toString('utf8') } : {}),
+  });
   if (i) {
     const wantsBody = (i.kind === 'open' && i.fromBody !== undefined) || i.kind === 'exchange';
     let body = r.body ?? null;

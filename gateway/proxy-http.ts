@@ -23,6 +23,7 @@ import { auditTarget, splitTarget, type SplitTarget } from './paths';
 import type { GatewayContext, Verdict } from './context';
 import { crossSiteProblem } from './csrf';
 import type { AccessDecision } from '../src/fleet/access';
+import type { Role } from '../src/fleet/types';
 import { unreachableReason } from './log';
 import { AnswerTooLarge, captureAnswer } from './upstream-http';
 
@@ -356,6 +357,7 @@ export function createHttpProxy(ctx: GatewayContext) {
       isCommand,
       done,
       watch,
+      v.principal.role,
     );
   }
 
@@ -375,6 +377,8 @@ export function createHttpProxy(ctx: GatewayContext) {
     isCommand: boolean,
     done: Done,
     watch: CommandWatch | null = null,
+    /** The browser's role (a family's held session may answer by it: a Duet job start). */
+    role?: Role,
   ): Promise<void> {
     const fam = opts.families[m.kind];
     if (patternsFor(m).length) {
@@ -391,7 +395,7 @@ export function createHttpProxy(ctx: GatewayContext) {
       m,
       req,
       res,
-      { method, path: t.path, query, headers, isCommand, body },
+      { method, path: t.path, query, headers, isCommand, body, role },
       done,
     );
     if (held === 'answered') return;

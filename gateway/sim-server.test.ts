@@ -139,7 +139,9 @@ describe('simulator server', () => {
     };
     expect(c).toMatchObject({ err: 0, apiLevel: 2 });
     expect((await consoleFetch(`${rrf?.url}/rr_model?key=seqs`)).status).toBe(401);
-    expect((await consoleFetch(`${rrf?.url}/machine/connect`)).status).toBe(404);
+    // DSF's paths get the board's web page (HTML, 200), as a real standalone board answers them.
+    const page = await consoleFetch(`${rrf?.url}/machine/connect`);
+    expect([page.status, page.headers.get('content-type')]).toEqual([200, 'text/html']);
     expect((await consoleFetch(`${dsf?.url}/rr_connect?sessionKey=yes`)).status).toBe(404);
     const machines = parseMachines('sim', JSON.parse(JSON.stringify(fleet.machinesFile)) as unknown, {});
     const t = tempDir();

@@ -91,7 +91,7 @@ describe('MachineWatch', () => {
     expect(reads).toHaveLength(4);
   });
 
-  it('keeps the last summary through an unreachable controller or a bad answer, without throwing', async () => {
+  it('keeps the last summary through an unreachable controller or a bad answer, without throwing; a bad answer is said ("not read by the server")', async () => {
     let n = 0;
     const events: WatchEvent[] = [];
     const w = new MachineWatch(
@@ -114,7 +114,49 @@ describe('MachineWatch', () => {
     await vi.advanceTimersByTimeAsync(5000);
     expect(n).toBeGreaterThanOrEqual(3);
     expect(w.current.state).toBe('running');
-    expect(events.map((e) => e.what)).toEqual(['job started']);
+    expect(w.current.unread).toBe('garbage');
+    expect(events.map((e) => e.what)).toEqual(['job started', 'not read by the server']);
+    w.stop();
+  });
+
+  it('reads again at once when its read taught the family another poll (a Duet found standalone), and holds a stream declared later', async () => {
+    const api: { v: 'unknown' | 'dsf' } = { v: 'unknown' };
+    const first = { path: '/machine/model', read: () => new Error('not JSON') };
+    const second = { path: '/rr_model', read: () => S('idle') };
+    const paths: string[] = [];
+    const holds: string[] = [];
+    const decl: WatchDecl = {
+      everyMs: 1000,
+      get poll() {
+        return paths.length === 0 ? first : second;
+      },
+      get stream() {
+        return api.v === 'dsf' ? { path: '/machine', read: () => null } : undefined;
+      },
+    };
+    const events: WatchEvent[] = [];
+    const w = new MachineWatch('d1', decl, {
+      read: (p) => {
+        paths.push(p);
+        return Promise.resolve({ status: 200, body: '' });
+      },
+      hold: (p) => {
+        holds.push(p);
+        return Promise.resolve(() => undefined);
+      },
+      report: (e) => events.push(e),
+    });
+    w.start();
+    await vi.advanceTimersByTimeAsync(2100);
+    expect(paths.slice(0, 2)).toEqual(['/machine/model', '/rr_model']);
+    expect(w.current).toMatchObject({ state: 'idle', unread: null });
+    expect(events.map((e) => e.what)).not.toContain('not read by the server');
+    expect(holds).toEqual([]);
+    api.v = 'dsf';
+    await vi.advanceTimersByTimeAsync(1100);
+    expect(holds).toEqual(['/machine']);
+    await vi.advanceTimersByTimeAsync(3000);
+    expect(holds).toEqual(['/machine']);
     w.stop();
   });
 

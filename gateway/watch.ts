@@ -57,6 +57,8 @@ export function describeChange(
   }
   if (next.alarm && next.alarm !== prev.alarm) out.push({ what: 'alarm', detail: next.alarm });
   else if (!next.alarm && prev.alarm) out.push({ what: 'alarm cleared', detail: `cleared: ${prev.alarm}` });
+  if (next.unread && !prev.unread) out.push({ what: 'not read by the server', detail: next.unread });
+  else if (!next.unread && prev.unread) out.push({ what: 'read again', detail: `was: ${prev.unread}` });
   return out;
 }
 
@@ -80,6 +82,8 @@ export class MachineWatch {
   private inFlight = false;
   private failures = 0;
   private streamRetries = 0;
+  /** A stream opening in flight, or its retry waiting. */
+  private streamPending = false;
   /** When the last good summary came (ms). */
   lastSeen: number | null = null;
 
@@ -95,7 +99,17 @@ export class MachineWatch {
 
   start(): void {
     if (this.decl.poll) this.schedule(Math.floor(Math.random() * Math.min(this.decl.everyMs, 2000)));
-    if (this.decl.stream && this.host.hold) void this.holdStream();
+    this.ensureStream();
+  }
+
+  /**
+   * Holds the family's stream when it declares one and none is held or on its way. A family may
+   * declare it only once it knows the machine's API (a Duet: DSF has the socket, a standalone
+   * board none), learned by a poll: checked at start and after every poll.
+   */
+  private ensureStream(): void {
+    if (this.stopped || !this.decl.stream || !this.host.hold || this.release || this.streamPending) return;
+    void this.holdStream();
   }
 
   stop(): void {
@@ -150,26 +164,41 @@ export class MachineWatch {
     if (!p || this.inFlight || this.stopped) return;
     this.inFlight = true;
     try {
-      const a = await this.host.read(p.path);
+      let read = p;
+      let a = await this.host.read(read.path);
+      // The read opened the controller's session and the family learned its API (a Duet probed
+      // as standalone): its poll is another one now, read at once with it.
+      const now = this.decl.poll;
+      if (now && now !== read && !this.stopped) {
+        read = now;
+        a = await this.host.read(read.path);
+      }
       if (this.stopped) return;
       // The gateway's own failure (unreachable, timed out): not the controller's answer.
       if (a.gateway) {
         this.unreachable();
         return;
       }
-      const s = p.read(a.status, a.body);
-      if (!(s instanceof Error)) this.learn(s);
+      const s = read.read(a.status, a.body);
+      // Answered, but nothing the family reads: "not read by the server", said, never nothing.
+      if (s instanceof Error) this.learn({ unread: s.message.slice(0, 300) });
+      else this.learn({ ...s, unread: null });
     } catch {
       // The read could not be made: the gateway's reachability log says why.
       if (!this.stopped) this.unreachable();
     } finally {
       this.inFlight = false;
+      this.ensureStream();
     }
   }
 
   private async holdStream(): Promise<void> {
     const s = this.decl.stream;
-    if (!s || !this.host.hold || this.stopped) return;
+    if (!s || !this.host.hold || this.stopped) {
+      this.streamPending = false;
+      return;
+    }
+    this.streamPending = true;
     try {
       const release = await this.host.hold(
         s.path,
@@ -182,6 +211,7 @@ export class MachineWatch {
           this.retryStream();
         },
       );
+      this.streamPending = false;
       if (this.stopped) release();
       else {
         this.release = release;
@@ -199,6 +229,7 @@ export class MachineWatch {
    * is listened to again before its next event, a flame), then every `everyMs`.
    */
   private retryStream(): void {
+    this.streamPending = !this.stopped;
     if (this.stopped) return;
     const wait =
       this.streamRetries++ === 0 ? Math.min(STREAM_RETRY_FIRST_MS, this.decl.everyMs) : this.decl.everyMs;

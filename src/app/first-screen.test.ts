@@ -75,6 +75,16 @@ describe('first screen', () => {
     const answered = { ...silent, link: 'online' as const, activity: 'idle' as const, updatedAt: 1 };
     expect(card(answered).activity).toBe('idle');
     expect(m.activityOf(info, answered)).toBe('idle');
+    // A machine the server cannot read says so.
+    const unread = m.cardOf({
+      ...info,
+      watch: { state: 'unread', job: null, progress: null, alarm: null, ageMs: 5, unread: 'not JSON' },
+    })(silent);
+    expect(unread).toMatchObject({ activity: 'unknown', alarms: [] });
+    expect(unread.activityLabel).toBe('Not read by the console server: not JSON · connecting…');
+    expect(
+      m.readWatch({ state: 'unread', job: null, progress: null, alarm: null, ageMs: 5, unread: 'x' }),
+    ).toBeDefined();
     // No reading: the session's card, whatever it says.
     expect(m.cardOf({ ...info, watch: undefined })(silent).activity).toBe('unknown');
   });

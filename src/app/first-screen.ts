@@ -16,12 +16,13 @@ const SEVERITIES = ['critical', 'warning', 'info'] as const;
 
 /** One machine's `watch` in the machines list (read per machine: a bad one is dropped alone). */
 export const watchSchema: z.ZodMiniType<ServerWatch> = z.object({
-  state: z.enum(['running', 'paused', 'idle', 'alarm', 'offline']),
+  state: z.enum(['running', 'paused', 'idle', 'alarm', 'offline', 'unread']),
   job: z.nullable(z.string()),
   progress: z.nullable(z.number()),
   alarm: z.nullable(z.string()),
   alarmSeverity: z.optional(z.nullable(z.enum(SEVERITIES))),
   ageMs: z.nullable(z.number()),
+  unread: z.optional(z.nullable(z.string())),
 });
 
 /** The machine's `watch` if it reads as one (anything else: none, the card waits for its session). */
@@ -37,6 +38,7 @@ const ACTIVITY_OF: Record<ServerWatch['state'], Activity> = {
   idle: 'idle',
   alarm: 'alarm',
   offline: 'offline',
+  unread: 'unknown',
 };
 
 type Card = ReturnType<typeof cardFields>;
@@ -70,7 +72,10 @@ function cardOfWatch(w: ServerWatch): Card {
   c = {
     link: 'connecting',
     activity: ACTIVITY_OF[w.state],
-    activityLabel: `Read by the console server${ageWords(w.ageMs)} · connecting…`,
+    activityLabel:
+      w.state === 'unread'
+        ? `Not read by the console server: ${w.unread ?? 'its answer cannot be read'} · connecting…`
+        : `Read by the console server${ageWords(w.ageMs)} · connecting…`,
     job,
     alarms,
     problem: null,

@@ -213,6 +213,12 @@ export interface WatchSummary {
    * when unknown. The job history keeps the last value a job had.
    */
   progress?: number | null;
+  /**
+   * Why the watch could not read the machine's answer (it answered, but not what the family reads:
+   * a web page, a 404, a model that does not validate): the machine is "not read by the server",
+   * its last reading no longer current. Null or absent: read. Set by the watch, never by a family.
+   */
+  unread?: string | null;
 }
 
 /** What a frame of a watched stream says: part of a summary, and alarms it raised (a frame cannot clear). */
@@ -309,7 +315,26 @@ export type HeldIntercept =
    */
   | { kind: 'exchange' }
   /** Answered as it is, never forwarded (a method the controller's login resource does not have). */
-  | { kind: 'answer'; answer: UpstreamAnswer };
+  | { kind: 'answer'; answer: UpstreamAnswer }
+  /**
+   * Answered by the family from requests of its own through the held session (`send`: the key
+   * applied, never retried; an expired key is renewed for the next one). What a controller hands
+   * out once for all its clients (RepRapFirmware's G-code replies) is fetched by the gateway alone
+   * and given to each page as its own (the Duet family's `replies.ts`).
+   */
+  | { kind: 'relay'; run(send: HeldSend): Promise<UpstreamAnswer> };
+
+/** One request of the gateway's own with the held session's key (a `relay` intercept). */
+export type HeldSend = (
+  method: string,
+  path: string,
+  query?: URLSearchParams,
+  /**
+   * `body`: the request body. `onData`: the answer's body is handed over as it comes instead of
+   * kept (no size bound; the answer's `body` is then ""); returning false stops reading it.
+   */
+  opts?: { body?: string; onData?: (chunk: Uint8Array) => boolean },
+) => Promise<UpstreamAnswer>;
 
 export type HeldOpen =
   /** `key` null: the controller wants none (no password protection, no user logged in). `answer` never holds the key. */
@@ -320,7 +345,15 @@ export type HeldOpen =
 /** A family's declaration that the gateway holds the controller's session (Node-safe, pure). */
 export interface HeldSessionHooks {
   /** Requests the gateway answers itself instead of forwarding them, or null. */
-  intercept(req: { method: string; path: string; query: URLSearchParams }): HeldIntercept | null;
+  intercept(req: {
+    method: string;
+    path: string;
+    query: URLSearchParams;
+    /** The browser's role (absent: the gateway's own request, a read). */
+    role?: Role;
+    /** The request body when the gateway read it to classify it (a G-code body). */
+    body?: string;
+  }): HeldIntercept | null;
   /**
    * The credentials from the machines file the session is opened with (a typed login is then not
    * used). Default: the configured `password`. TouchCut: none (its `apiKey` is no login).

@@ -31,7 +31,8 @@ export interface MachineInfo {
 
 /** A machine's state as the console server's watch last read it (`watch` in `GET /api/machines`). */
 export interface ServerWatch {
-  state: 'running' | 'paused' | 'idle' | 'alarm' | 'offline';
+  /** `unread`: the machine answered the server's watch with nothing it can read (`unread` says why). */
+  state: 'running' | 'paused' | 'idle' | 'alarm' | 'offline' | 'unread';
   job: string | null;
   /** 0..1 */
   progress: number | null;
@@ -39,6 +40,8 @@ export interface ServerWatch {
   alarmSeverity?: AlarmSeverity | null | undefined;
   /** How long before the list was sent (ms): an age, not a clock time. */
   ageMs: number | null;
+  /** Why the server cannot read it (state `unread`). */
+  unread?: string | null | undefined;
 }
 
 export const ROLES = ['viewer', 'operator', 'supervisor'] as const;

@@ -131,7 +131,7 @@ export class DuetClient {
    * password wins; a typed one is checked with the Duet and kept by the gateway), without a key.
    * The gateway probed the board (`gateway.ts`): a standalone board's answer is `rr_connect`'s,
    * with a numeric `err`, which DSF's never has. Where no gateway answers (msw) and DSF's connect
-   * is not there (404), `rr_connect` is asked directly.
+   * is not there (404, or the board's web page), `rr_connect` is asked directly.
    */
   async connect(password?: string, signal?: AbortSignal): Promise<string | null> {
     this.connected = false;
@@ -139,7 +139,9 @@ export class DuetClient {
     try {
       r = await this.http.json({ path: '/machine/connect', query: { password }, signal }, connectAnswer);
     } catch (e) {
-      if (!(e instanceof LinkError && e.status === 404 && !fromGateway(e))) throw e;
+      // No DSF there: a 404, or a standalone board's web page (HTML, 200), never from a gateway.
+      const notDsf = e instanceof LinkError && (e.status === 404 || e.kind === 'protocol');
+      if (!notDsf || fromGateway(e)) throw e;
       this.sessionKey = await (await this.loadRrf()).connect(password, signal);
       this.api = 'standalone';
       this.connected = true;

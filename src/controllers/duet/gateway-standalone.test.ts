@@ -133,23 +133,34 @@ describe('duet held session: standalone or DSF', () => {
     if (!h?.session || !h.sharing) throw new Error('no per-machine hints');
     // Not known yet: DSF's.
     expect(h.sharing.maxConcurrentReads).toBe(duetSharing.maxConcurrentReads);
-    expect(h.sharing.watch).toBe(duetSharing.watch);
+    // The watch's first read is DSF's model poll, without the socket: it opens the session, whose
+    // probe learns the API, and the watch reads again with that API's poll.
+    expect(h.sharing.watch?.poll).toBe(duetSharing.watch?.poll);
+    expect(h.sharing.watch?.stream).toBeUndefined();
     await h.session.open(upstreamOf({ '/rr_connect': ans(200, RRF_OK) }).upstream, undefined);
     expect(h.sharing.maxConcurrentReads).toBe(2);
     expect(h.sharing.keepAlive).toBe(false);
     expect(h.sharing.streams).toEqual([]);
-    expect(h.sharing.watch).toBe(rrfWatch);
+    expect(h.sharing.watch?.poll).toBe(rrfWatch.poll);
+    expect(h.sharing.watch?.stream).toBeUndefined();
     expect(h.sharing.shareRead?.('/rr_model', new URLSearchParams('key=&flags=d99fn'))).toBe(1000);
     expect(h.sharing.shareRead?.('/rr_gcode', new URLSearchParams('gcode=M25'))).toBeNull();
-    // A reply is handed out once per session: never kept for another read.
+    // rr_reply is never shared (nor forwarded: the gateway answers it, replies.ts).
     expect(h.sharing.shareRead?.('/rr_reply', new URLSearchParams())).toBeNull();
-    // A reply asked for by its number is kept for every page (a new reply has a new number).
-    expect(h.sharing.shareRead?.('/rr_reply', new URLSearchParams('seq=7'))).toBeGreaterThan(0);
-    expect(h.sharing.shareRead?.('/rr_reply', new URLSearchParams('seq=x'))).toBeNull();
-    expect(h.sharing.shareRead?.('/rr_reply', new URLSearchParams('seq=7&a=1'))).toBeNull();
+    expect(h.sharing.shareRead?.('/rr_reply', new URLSearchParams('seq=7'))).toBeNull();
+    for (const [method, path, q] of [
+      ['GET', '/rr_reply', ''],
+      ['GET', '/RR_Reply/', 'seq=7'],
+      ['POST', '/rr_reply', ''],
+      ['GET', '/rr_gcode', 'gcode=M115'],
+    ] as const)
+      expect(h.session.intercept({ method, path, query: new URLSearchParams(q) })?.kind, path).toBe('relay');
     // Forced by the machines file: standalone from the start.
     const forced = duetFamily.gateway?.forMachine?.({ id: 'm2', api: 'standalone' });
-    expect(forced?.sharing?.watch).toBe(rrfWatch);
+    expect(forced?.sharing?.watch?.poll).toBe(rrfWatch.poll);
+    const dsf = duetFamily.gateway?.forMachine?.({ id: 'm3', api: 'dsf' });
+    expect(dsf?.sharing?.watch?.poll).toBe(duetSharing.watch?.poll);
+    expect(dsf?.sharing?.watch?.stream).toBe(duetSharing.watch?.stream);
     const state: DuetApiState = { api: null };
     await duetHeldSessionFor(state).open(
       upstreamOf({ '/machine/connect': ans(200, { sessionKey: 'g' }) }).upstream,

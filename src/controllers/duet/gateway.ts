@@ -1,4 +1,6 @@
-import type { HeldSessionHooks, UpstreamAnswer } from '../../fleet/contract';
+import type { HeldSend, HeldSessionHooks, UpstreamAnswer } from '../../fleet/contract';
+import { JobScanner, startedJobFiles } from './jobscan';
+import { RrfReplies } from './replies';
 
 /**
  * The gateway holds the DSF session (gateway/held-session.ts): a session key lets whoever has it
@@ -164,8 +166,58 @@ export function duetHeldSessionFor(
   const learn = (a: DuetApi) => {
     state.api = a;
   };
+  const replies = new RrfReplies();
   const hooks: HeldSessionHooks = {
     ...base,
+    /**
+     * Besides connect and disconnect: every `rr_reply` (any method, any spelling, with or without
+     * a query) is the gateway's, never the board's (`replies.ts`: RRF's one reply buffer is used
+     * up by whoever asks first); `GET rr_gcode` is sent by the gateway, whose answer carries the
+     * ticket of its reply. A DSF board (whose `rr_*` emulation is not used) gets neither.
+     */
+    intercept(req) {
+      const r = routeOf(req.path);
+      if (r === '/rr_reply')
+        return {
+          kind: 'relay',
+          run: async (send) => {
+            if (state.api === null) await replies.sync(send).catch(() => undefined);
+            return state.api === 'dsf'
+              ? json(404, JSON.stringify({ error: 'rr_reply is not used with DSF' }))
+              : replies.ask(send, req.query);
+          },
+        };
+      const method = req.method.toUpperCase();
+      // A job start by anyone but a supervisor: the file is read and checked first (jobscan.ts).
+      const code =
+        r === '/rr_gcode' && method === 'GET'
+          ? [...req.query]
+              .filter(([k]) => k.toLowerCase() === 'gcode')
+              .map(([, v]) => v)
+              .join('\n')
+          : r === '/machine/code' && method === 'POST'
+            ? (req.body ?? '')
+            : '';
+      const files = code ? startedJobFiles(code) : [];
+      const forward = (send: HeldSend): Promise<UpstreamAnswer> =>
+        r === '/machine/code'
+          ? send('POST', req.path, req.query, { body: req.body ?? '' })
+          : replies.code(send, req.query);
+      if (files.length > 0 && req.role !== 'supervisor')
+        return {
+          kind: 'relay',
+          run: async (send) => {
+            for (const f of files) {
+              const refused = await checkJobFile(send, f, r === '/rr_gcode');
+              if (refused) return refused;
+            }
+            return forward(send);
+          },
+        };
+      if (r === '/rr_gcode' && method === 'GET' && state.api !== 'dsf')
+        return { kind: 'relay', run: (send) => replies.code(send, req.query) };
+      return base.intercept(req);
+    },
     async open(upstream, credentials) {
       if (state.api !== 'dsf') {
         const q = new URLSearchParams({
@@ -205,6 +257,43 @@ export function duetHeldSessionFor(
     },
   };
   return hooks;
+}
+
+/**
+ * Reads a job file from the board as it streams and checks what an operator's job may contain
+ * (`jobscan.ts`): null when it may be started, else the refusal for the browser (403, naming the
+ * file, the line and the code). A file that cannot be read is refused too: never started unchecked.
+ */
+async function checkJobFile(
+  send: HeldSend,
+  file: string,
+  standalone: boolean,
+): Promise<UpstreamAnswer | null> {
+  const scanner = new JobScanner();
+  const refuse = (why: string): UpstreamAnswer =>
+    json(
+      403,
+      JSON.stringify({
+        error: `refused: ${file}: ${why}; an operator may not start this file (a supervisor may)`,
+        gateway: true,
+      }),
+    );
+  let a: UpstreamAnswer;
+  try {
+    a = standalone
+      ? await send('GET', '/rr_download', new URLSearchParams({ name: file }), {
+          onData: (c) => scanner.push(c),
+        })
+      : await send('GET', `/machine/file/${encodeURIComponent(file)}`, undefined, {
+          onData: (c) => scanner.push(c),
+        });
+  } catch (e) {
+    return refuse(`the file could not be read to check it (${e instanceof Error ? e.message : String(e)})`);
+  }
+  if (a.status !== 200) return refuse(`the file could not be read to check it (HTTP ${a.status})`);
+  const f = scanner.end();
+  if (!f) return null;
+  return refuse(`line ${f.line}${f.code ? `: ${f.code} ${f.why}` : `: ${f.why}`}`);
 }
 
 export const duetHeldSession: HeldSessionHooks = {

@@ -33,7 +33,10 @@ function board(parts: Record<string, unknown>, opts: { reply?: string } = {}) {
       const result = key === '' ? { state: parts['state'], seqs: parts['seqs'] } : (parts[key] ?? null);
       return HttpResponse.json({ key, flags, result });
     }),
-    http.get(`${base}/rr_reply`, () => new HttpResponse(opts.reply ?? '')),
+    // The gateway's rr_reply (replies.ts): no messages, no replies unless a test says.
+    http.get(`${base}/rr_reply`, () =>
+      HttpResponse.json({ next: 0, messages: opts.reply ? [opts.reply] : [], replies: {} }),
+    ),
   );
   return seen;
 }
@@ -99,28 +102,57 @@ describe('RrfClient (standalone rr_*)', () => {
     await expect(c.rrf.poll()).rejects.toBeInstanceOf(LinkError);
   });
 
-  it('a code gets its reply from rr_reply once seqs.reply moved; other replies are messages', async () => {
+  it('through the gateway: a code gets the reply of its own ticket, the board’s messages come from the feed once, the page never reads the board’s buffer', async () => {
     const parts: Record<string, unknown> = { state: {}, seqs: { reply: 5 } };
-    board(parts, { reply: 'FIRMWARE_NAME: RepRapFirmware' });
+    board(parts);
     const codes: string[] = [];
+    const asks: string[] = [];
+    let head = 3;
+    const messages: Array<{ id: number; text: string }> = [];
+    const replies = new Map<string, string>();
     server.use(
       http.get(`${base}/rr_gcode`, ({ request }) => {
         codes.push(new URL(request.url).searchParams.get('gcode') ?? '');
         parts['seqs'] = { reply: 6 };
-        return HttpResponse.json({ buff: 250 });
+        replies.set('t-1', 'FIRMWARE_NAME: RepRapFirmware');
+        return HttpResponse.json({ buff: 250, replyTicket: 't-1' });
+      }),
+      http.get(`${base}/rr_reply`, ({ request }) => {
+        const q = new URL(request.url).searchParams;
+        asks.push(q.toString());
+        const after = q.get('after');
+        const out: Record<string, string> = {};
+        for (const t of q.getAll('ticket')) {
+          const r = replies.get(t);
+          if (r !== undefined) out[t] = r;
+          replies.delete(t);
+        }
+        return HttpResponse.json({
+          next: head,
+          messages: after === null ? [] : messages.filter((m) => m.id > Number(after)).map((m) => m.text),
+          replies: out,
+        });
       }),
     );
     const c = await connected();
-    const messages: string[] = [];
-    c.rrf.onReply = (t) => messages.push(t);
+    const logged: string[] = [];
+    c.rrf.onReply = (t) => logged.push(t);
     await c.rrf.poll();
+    // The first ask only learns where the messages stand.
+    expect(asks).toEqual(['']);
     c.kick = () => void c.rrf.poll();
     expect(await c.code('M115')).toBe('FIRMWARE_NAME: RepRapFirmware');
     expect(codes).toEqual(['M115']);
-    expect(messages).toEqual([]);
+    expect(asks.at(-1)).toBe('after=3&ticket=t-1');
+    expect(logged).toEqual([]);
+    // A message of the board: the number moves, the feed gives it, once.
+    messages.push({ id: 4, text: 'Driver 0.3 warning' });
+    head = 4;
     parts['seqs'] = { reply: 7 };
     await c.rrf.poll();
-    expect(messages).toEqual(['FIRMWARE_NAME: RepRapFirmware']);
+    await c.rrf.poll();
+    expect(logged).toEqual(['Driver 0.3 warning']);
+    expect(asks.every((a) => !a.includes('seq='))).toBe(true);
   });
 
   it('rr_connect err 2 through the gateway (503 {"err":2}) reads as "no free session"; err 1 as 403', async () => {

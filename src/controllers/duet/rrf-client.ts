@@ -17,9 +17,13 @@ import { dirEntrySchema, parsedFileInfoSchema, type DirEntry, type ParsedFileInf
  *   `rr_model?key=<part>&flags=d99vno` for each part whose `seqs.<part>` moved (all of them the first
  *   time), merged into one raw model shaped as DSF's, which the session validates as a polled DSF
  *   model (`ingest.polled`).
- * - G-code: `rr_gcode?gcode=` answers `{"buff":n}`; the reply is fetched with `rr_reply` when
- *   `seqs.reply` moves. A code waits for the next reply (as Duet Web Control's PollConnector
- *   does); a reply nobody waits for is a controller message (`onReply`).
+ * - G-code: `rr_gcode?gcode=` answers `{"buff":n}`. Through the gateway (no key in the page) the
+ *   answer also carries `replyTicket`, and the page never reads the board's reply buffer: when
+ *   `seqs.reply` moves (or a code waits), it asks the gateway's `rr_reply?after=<n>&ticket=<t>`
+ *   (`replies.ts`) for the board's messages since n and its own codes' replies. Without a gateway
+ *   (msw, tests) the page reads `rr_reply` itself when `seqs.reply` moves: a code waits for the
+ *   next reply (as Duet Web Control's PollConnector does), a reply nobody waits for is a message
+ *   (`onReply`).
  * - Query values are percent-encoded with `encodeURIComponent` (never `+` for a space: whether RRF
  *   reads `+` as a space is not documented; Duet Web Control never sends one).
  * - Everything is untrusted: each answer is checked with zod, an `rr_model` answer nested deeper
@@ -41,7 +45,13 @@ export const REPLY_WAIT_MS = 30_000;
 
 const errAnswer = z.looseObject({ err: z.number() });
 const modelAnswer = z.looseObject({ result: z.unknown(), next: z.optional(z.number()) });
-const gcodeAnswer = z.looseObject({ buff: z.number() });
+const gcodeAnswer = z.looseObject({ buff: z.number(), replyTicket: z.optional(z.string()) });
+/** The gateway's `rr_reply` (replies.ts): the board's messages after a number, the tickets' replies. */
+const replyFeed = z.looseObject({
+  next: z.number(),
+  messages: z.array(z.string()),
+  replies: z.record(z.string(), z.string()),
+});
 const fileListAnswer = z.looseObject({
   err: z._default(z.optional(z.number()), 0),
   files: z._default(z.optional(z.array(z.unknown())), []),
@@ -70,6 +80,8 @@ export interface UploadOptions {
 interface ReplyWaiter {
   resolve: (text: string) => void;
   timer: ReturnType<typeof setTimeout>;
+  /** The gateway's ticket of the code's reply (none: the next reply read from the board). */
+  ticket?: string;
 }
 
 export class RrfClient {
@@ -77,6 +89,8 @@ export class RrfClient {
   private model: JsonObject | null = null;
   private seqs: Record<string, number> = {};
   private replySeq: number | null = null;
+  /** The gateway's number of the last board message this page got (null: not asked yet). */
+  private feedNext: number | null = null;
   private readonly waiters: ReplyWaiter[] = [];
   /**
    * Polls and code sends take turns: a poll in flight while a code is sent could fetch the
@@ -102,6 +116,7 @@ export class RrfClient {
     this.model = null;
     this.seqs = {};
     this.replySeq = null;
+    this.feedNext = null;
     for (const w of this.waiters.splice(0)) {
       clearTimeout(w.timer);
       w.resolve('');
@@ -173,26 +188,47 @@ export class RrfClient {
     this.model = model;
     this.seqs = seqs;
     const reply = seqs['reply'];
-    if (reply !== undefined) {
-      if (this.replySeq !== null && reply !== this.replySeq) await this.fetchReply(reply, signal);
-      this.replySeq = reply;
-    }
+    const moved = reply !== undefined && this.replySeq !== null && reply !== this.replySeq;
+    if (this.key() === null) {
+      // Through the gateway: its feed (the board's reply buffer is the gateway's alone).
+      if (this.feedNext === null || moved || this.waiters.some((w) => w.ticket !== undefined))
+        await this.askGateway(signal);
+    } else if (moved) await this.fetchReply(signal);
+    if (reply !== undefined) this.replySeq = reply;
     return model;
   }
 
-  /**
-   * `rr_reply`, asked for by the reply's number (`seq`, which RepRapFirmware ignores): the board
-   * hands each reply out once per session and every page shares the gateway's one session, so the
-   * gateway keeps the answer for that number (sharing.ts `rrfShareRead`) and every page that saw
-   * the number move gets the same text, not only the first one to ask.
-   */
-  private async fetchReply(seq: number, signal?: AbortSignal): Promise<void> {
-    const r = await this.http.raw({ path: `/rr_reply${rrQuery({ seq })}`, signal });
-    const waiter = this.waiters.shift();
+  /** `rr_reply` read from the board (no gateway: msw, tests): the next waiting code's, or a message. */
+  private async fetchReply(signal?: AbortSignal): Promise<void> {
+    const r = await this.http.raw({ path: '/rr_reply', signal });
+    const i = this.waiters.findIndex((w) => w.ticket === undefined);
+    const waiter = i >= 0 ? this.waiters.splice(i, 1)[0] : undefined;
     if (waiter) {
       clearTimeout(waiter.timer);
       waiter.resolve(r.text);
     } else if (r.text.trim()) this.onReply(r.text);
+  }
+
+  /**
+   * The gateway's `rr_reply?after=<n>&ticket=<t>…` (replies.ts): the board's messages since the
+   * last ask (the first ask only learns where they stand) and the replies of this page's codes.
+   */
+  private async askGateway(signal?: AbortSignal): Promise<void> {
+    const q = new URLSearchParams();
+    if (this.feedNext !== null) q.set('after', String(this.feedNext));
+    for (const w of this.waiters.slice(0, 8)) if (w.ticket !== undefined) q.append('ticket', w.ticket);
+    const qs = q.toString().replace(/\+/g, '%20');
+    const a = await this.http.json({ path: `/rr_reply${qs ? `?${qs}` : ''}`, signal }, replyFeed);
+    const first = this.feedNext === null;
+    this.feedNext = a.next;
+    if (!first) for (const m of a.messages) if (m.trim()) this.onReply(m);
+    for (const [ticket, text] of Object.entries(a.replies)) {
+      const i = this.waiters.findIndex((w) => w.ticket === ticket);
+      const w = i >= 0 ? this.waiters.splice(i, 1)[0] : undefined;
+      if (!w) continue;
+      clearTimeout(w.timer);
+      w.resolve(text);
+    }
   }
 
   /**
@@ -202,13 +238,30 @@ export class RrfClient {
   async code(code: string, opts: { commandId?: string; async?: boolean }, kick: () => void): Promise<string> {
     // The turn ends once the code is sent and waits (a poll resolves the wait: not awaited here).
     const sent = await this.inTurn(async () => {
-      await this.http.json(
+      const a = await this.http.json(
         { path: `/rr_gcode${rrQuery({ gcode: code })}`, commandId: opts.commandId, timeoutMs: 10_000 },
         gcodeAnswer,
       );
-      if (opts.async) return { reply: Promise.resolve('') };
+      if (opts.async) {
+        // Not waited for: its reply (taken for it by the gateway) shows as a message.
+        if (a.replyTicket !== undefined) {
+          const w: ReplyWaiter = {
+            ticket: a.replyTicket,
+            resolve: (text) => {
+              if (text.trim()) this.onReply(text);
+            },
+            timer: setTimeout(() => {
+              const i = this.waiters.indexOf(w);
+              if (i >= 0) this.waiters.splice(i, 1);
+            }, REPLY_WAIT_MS),
+          };
+          this.waiters.push(w);
+        }
+        return { reply: Promise.resolve('') };
+      }
       const reply = new Promise<string>((resolve) => {
         const w: ReplyWaiter = {
+          ...(a.replyTicket !== undefined ? { ticket: a.replyTicket } : {}),
           resolve,
           timer: setTimeout(() => {
             const i = this.waiters.indexOf(w);

@@ -274,15 +274,6 @@ export const RRF_WATCH_PATH = '/rr_model?key=&flags=d99vno';
 /** Identical `rr_model` reads of several viewers within this window: one upstream. */
 export const RRF_SHARE_MS = 1000;
 /**
- * `rr_reply?seq=<n>`: the reply numbered n, kept this long for every page. RRF hands each reply
- * out once per session, and every page shares the gateway's session: without the number a kept
- * answer would repeat one reply and lose the next, and unkept, only the first page to ask would
- * see it. A page asks for the number it saw in `seqs.reply` (rrf-client.ts); a new reply has a new
- * number, so a new key. A plain `rr_reply` is never shared.
- */
-export const RRF_REPLY_SHARE_MS = 30_000;
-
-/**
  * The watch of a standalone board: `rr_model` polled every 10 s (no socket on RepRapFirmware
  * standalone; the gateway's keep-alive holds the session between polls).
  */
@@ -305,14 +296,12 @@ export const rrfWatch: WatchDecl = {
   },
 };
 
-/** Reads of a standalone board several viewers may share: the model polls, a numbered reply. */
+/**
+ * Reads of a standalone board several viewers may share: the model polls. (`rr_reply` never
+ * reaches the board from a browser: the gateway answers it, `replies.ts`.)
+ */
 export function rrfShareRead(path: string, query: URLSearchParams): number | null {
-  const r = routeOf(path);
-  if (r === '/rr_reply') {
-    const keys = [...query.keys()];
-    return keys.length === 1 && /^\d{1,10}$/.test(query.get('seq') ?? '') ? RRF_REPLY_SHARE_MS : null;
-  }
-  if (r !== '/rr_model') return null;
+  if (routeOf(path) !== '/rr_model') return null;
   if (duetAccess({ method: 'GET', path, query }).command) return null;
   return RRF_SHARE_MS;
 }
@@ -337,8 +326,29 @@ export function duetSharingFor(state: DuetApiState, base: SharingHints = duetSha
     get streams() {
       return standalone() ? [] : base.streams;
     },
-    get watch() {
-      return standalone() ? rrfWatch : base.watch;
+    watch: watchFor(state, base.watch),
+  };
+}
+
+/**
+ * One machine's watch, following what its session learned (`state.api`, read at every poll): the
+ * `rr_model` poll of a standalone board, DSF's model poll and socket, and, while the API is not
+ * known yet, DSF's poll without the socket: that first read opens the gateway's session, whose
+ * probe learns the API, and the watch reads again at once with the poll of the API it learned
+ * (gateway/watch.ts), then holds DSF's socket if it is DSF. The interval is the family's
+ * (`base.everyMs`) for both.
+ */
+function watchFor(state: DuetApiState, base: WatchDecl | undefined): WatchDecl | undefined {
+  if (!base) return undefined;
+  return {
+    get everyMs() {
+      return base.everyMs;
+    },
+    get poll() {
+      return state.api === 'standalone' ? rrfWatch.poll : base.poll;
+    },
+    get stream() {
+      return state.api === 'dsf' ? base.stream : undefined;
     },
   };
 }

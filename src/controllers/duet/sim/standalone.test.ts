@@ -102,7 +102,7 @@ describe('RrfSimulator (standalone rr_* API)', () => {
 
   it('runs G-code: {"buff":n}, the reply by rr_reply once seqs.reply moved', async () => {
     const key = await connect();
-    const other = await connect();
+    await connect();
     const seq = async (k: string) =>
       ((await json('GET', '/rr_model?key=seqs&flags=', k))['result'] as JsonObject)['reply'];
     const before = await seq(key);
@@ -112,9 +112,39 @@ describe('RrfSimulator (standalone rr_* API)', () => {
     expect(await seq(key)).toBe(Number(before) + 1);
     const text = await (await req('GET', '/rr_reply', key)).text();
     expect(text).toMatch(/FIRMWARE_NAME/);
-    expect(await (await req('GET', '/rr_reply', key)).text()).toBe(''); // fetched once per session
-    expect(await (await req('GET', '/rr_reply', other)).text()).toMatch(/FIRMWARE_NAME/);
     expect(sim.printer.codes).toContain('M115');
+  });
+
+  it('keeps ONE reply buffer for every session, cleared after as many fetches as there are sessions (HttpResponder.cpp)', async () => {
+    const a = await connect();
+    const b = await connect();
+    const reply = async (k: string) => (await req('GET', '/rr_reply', k)).text();
+    await json('GET', `/rr_gcode?gcode=${encodeURIComponent('M115')}`, a);
+    // Two sessions: two fetches, by anyone (the same session twice counts twice), then it is gone.
+    expect(await reply(a)).toMatch(/FIRMWARE_NAME/);
+    expect(await reply(a)).toMatch(/FIRMWARE_NAME/);
+    expect(await reply(b)).toBe('');
+    // Replies not fetched are appended (the buffer is the board's, not a code's).
+    await json('GET', `/rr_gcode?gcode=${encodeURIComponent('M115')}`, a);
+    await json('GET', `/rr_gcode?gcode=${encodeURIComponent('M115')}`, b);
+    expect((await reply(b)).match(/FIRMWARE_NAME/g)).toHaveLength(2);
+    // One session left: its first fetch takes the reply, whoever sent the code.
+    await json('GET', '/rr_disconnect', b);
+    await reply(a);
+    await json('GET', `/rr_gcode?gcode=${encodeURIComponent('M115')}`, a);
+    const c = await connect();
+    await reply(c);
+    // c and a: c served once; a's fetch is the second of two: cleared.
+    expect(await reply(a)).toMatch(/FIRMWARE_NAME/);
+    expect(await reply(c)).toBe('');
+    // A session that times out counts as served (CheckSessions): a's one fetch of two is enough.
+    await json('GET', `/rr_gcode?gcode=${encodeURIComponent('M115')}`, a);
+    expect(await reply(a)).toMatch(/FIRMWARE_NAME/);
+    vi.advanceTimersByTime(SESSION_TIMEOUT_MS / 2);
+    await req('GET', '/rr_model?key=seqs&flags=', a);
+    vi.advanceTimersByTime(SESSION_TIMEOUT_MS / 2 + 1000);
+    expect(sim.openSessions).toBe(1);
+    expect(await reply(a)).toBe('');
   });
 
   it('refuses an upload whose crc32 does not match with {"err":1}, then rr_upload GET says 1', async () => {

@@ -26,11 +26,17 @@ import { DuetSimulator, type DuetSimOptions } from './simulator';
  * - `rr_model?key=&flags=`: `{key, flags, result}`; `f` in the flags: the live parts only (an
  *   approximation: the whole of each live top-level part rather than RRF's field-by-field choice);
  *   `seqs` counts changes of each top-level part and of the G-code reply.
- * - `rr_gcode?gcode=` → `{"buff":n}`; its reply (and every message) waits in each session's reply
- *   buffer for `rr_reply`, `seqs.reply` counts them.
+ * - `rr_gcode?gcode=` → `{"buff":n}`; its reply (and every message) is appended to the board's ONE
+ *   reply buffer and `seqs.reply` counts them (`HttpResponder::HandleGCodeReply`, only while a
+ *   session exists). Every `rr_reply`, from any session, counts one client served; once as many
+ *   were served as there are sessions the buffer is cleared (`SendGCodeReply`): with one session
+ *   the first `rr_reply` takes the reply, whoever asked. Sessions that time out count as served
+ *   (`CheckSessions`).
  * - Files: `rr_upload` (raw body, `crc32` checked: `{"err":1}` on a mismatch), `rr_download`,
  *   `rr_filelist` (paged by FILELIST_PAGE, `next`), `rr_fileinfo`, `rr_thumbnail` (paged),
  *   `rr_delete`, `rr_move`, `rr_mkdir`.
+ * - Any path that is not `rr_*` (a DSF path such as `/machine/model`): the web page, HTML, 200, as
+ *   RRF's web server serves its `www` folder.
  */
 
 export const MAX_SESSIONS = 8;
@@ -41,6 +47,11 @@ export const FILELIST_PAGE = 8;
 export const THUMBNAIL_PAGE = 1024;
 export const GCODE_BUFFER = 255;
 
+/** What a standalone board answers to any path that is not `rr_*`: its web page (DWC's). */
+export const WEB_PAGE =
+  '<!DOCTYPE html><html lang="en"><head><meta charset="utf-8"><title>Duet Web Control</title></head>' +
+  '<body><noscript>Duet Web Control needs JavaScript.</noscript><div id="app"></div></body></html>';
+
 /** Parts a standalone board does not have (DSF only). */
 const NOT_STANDALONE = new Set(['messages', 'plugins', 'sbc']);
 /** Parts whose values change often: what `flags=…f…` returns (plus `seqs`). */
@@ -48,9 +59,10 @@ const LIVE_PARTS = ['boards', 'fans', 'heat', 'inputs', 'job', 'move', 'sensors'
 
 interface RrSession {
   lastSeen: number;
-  /** G-code replies and messages not yet fetched with `rr_reply`. */
-  reply: string[];
 }
+
+/** RRF stops appending when its output buffers run out; here: this many characters. */
+export const REPLY_BUFFER_MAX = 16 * 1024;
 
 export class RrfSimulator implements Simulator {
   readonly kind = 'duet' as const;
@@ -59,13 +71,16 @@ export class RrfSimulator implements Simulator {
   password: string | null;
   /** HTTP requests received ("GET /rr_model"), for tests. */
   readonly requests: string[] = [];
-  /** The `seq` each `rr_reply` asked for ("" without one), for tests: RRF itself ignores it. */
-  readonly replyAsks: string[] = [];
+  /** What each `rr_reply` was answered, for tests. */
+  readonly replyAnswers: string[] = [];
   private readonly now: () => number;
   private readonly sessions = new Map<string, RrSession>();
   private readonly seqs: Record<string, number> = {};
   private readonly lastParts = new Map<string, string>();
   private replySeq = 0;
+  /** The one reply buffer of all sessions, and how many clients were served it since it changed. */
+  private replyBuffer = '';
+  private clientsServed = 0;
   private lastUploadErr = 0;
 
   constructor(opts: DuetSimOptions) {
@@ -92,18 +107,29 @@ export class RrfSimulator implements Simulator {
 
   private expire(): void {
     const now = this.now();
-    for (const [k, s] of this.sessions) if (now - s.lastSeen > SESSION_TIMEOUT_MS) this.sessions.delete(k);
+    let timedOut = 0;
+    for (const [k, s] of this.sessions)
+      if (now - s.lastSeen > SESSION_TIMEOUT_MS) {
+        this.sessions.delete(k);
+        timedOut++;
+      }
+    if (timedOut === 0) return;
+    // CheckSessions: the clients gone are assumed not to have fetched the reply yet.
+    this.clientsServed += timedOut;
+    if (this.sessions.size === 0 || this.clientsServed >= this.sessions.size) {
+      this.replyBuffer = '';
+      this.clientsServed = 0;
+    }
   }
 
   /** A reply for every session's `rr_reply`; a code's reply counts even when empty (`always`). */
   private reply(text: string, always = false): void {
     if (!text && !always) return;
+    // HandleGCodeReply: nothing is kept (nor counted) while no session exists.
+    if (this.sessions.size === 0) return;
+    if (this.replyBuffer.length + text.length <= REPLY_BUFFER_MAX) this.replyBuffer += text;
+    this.clientsServed = 0;
     this.replySeq++;
-    if (!text) return;
-    for (const s of this.sessions.values()) {
-      s.reply.push(text);
-      if (s.reply.length > 50) s.reply.shift();
-    }
   }
 
   /** `seqs`: each top-level part's change count, the reply count, volume changes. */
@@ -140,7 +166,7 @@ export class RrfSimulator implements Simulator {
       let key: string;
       do key = String(Math.floor(Math.random() * 0xffffffff) + 1);
       while (this.sessions.has(key));
-      this.sessions.set(key, { lastSeen: this.now(), reply: [] });
+      this.sessions.set(key, { lastSeen: this.now() });
       const answer: JsonObject = {
         err: 0,
         sessionTimeout: SESSION_TIMEOUT_MS,
@@ -150,13 +176,15 @@ export class RrfSimulator implements Simulator {
       if (query.get('sessionKey') === 'yes') answer['sessionKey'] = Number(key);
       return jsonResponse(answer);
     }
-    if (!pathname.startsWith('/rr_')) return new Response(null, { status: 404 });
+    // Not the rr_* API (`/machine/model`, `/`, `/anything`): RRF's web server answers with its
+    // web page (the card's `0:/www/index.html`, Duet Web Control), 200, never a model.
+    if (!pathname.startsWith('/rr_')) return textResponse(WEB_PAGE, 200, 'text/html');
     const key = req.headers.get('X-Session-Key');
     const session = key !== null ? this.sessions.get(key) : undefined;
     if (key === null || !session) return textResponse('{"err":"not authorized"}', 401, 'application/json');
     session.lastSeen = this.now();
     try {
-      return await this.route(req, method, pathname, query, key, session);
+      return await this.route(req, method, pathname, query, key);
     } finally {
       session.lastSeen = this.now();
       this.printer.flush();
@@ -169,7 +197,6 @@ export class RrfSimulator implements Simulator {
     pathname: string,
     query: URLSearchParams,
     key: string,
-    session: RrSession,
   ): Promise<Response> {
     const fs = this.printer.fs;
     const name = query.get('name') ?? '';
@@ -196,10 +223,17 @@ export class RrfSimulator implements Simulator {
         return jsonResponse({ buff: GCODE_BUFFER });
       }
       case '/rr_reply': {
-        this.replyAsks.push(query.get('seq') ?? '');
-        if (this.replyAsks.length > 500) this.replyAsks.shift();
-        const text = session.reply.join('\n');
-        session.reply = [];
+        // SendGCodeReply: one client served; cleared once every session was (whoever they are).
+        const text = this.replyBuffer;
+        if (text !== '') {
+          this.clientsServed++;
+          if (this.clientsServed >= this.sessions.size) {
+            this.replyBuffer = '';
+            this.clientsServed = 0;
+          }
+        }
+        this.replyAnswers.push(text);
+        if (this.replyAnswers.length > 500) this.replyAnswers.shift();
         return textResponse(text);
       }
       case '/rr_upload':
