@@ -406,7 +406,10 @@ export function createApi(ctx: GatewayContext, stores: ApiStores = createAlarmSt
           else sendJson(res, 200, await audit.query(q));
         } catch (e) {
           if (res.headersSent) res.destroy();
-          else sendJson(res, 503, { error: `the audit log cannot be read: ${ctx.scrub(e instanceof Error ? e.message : String(e))}` });
+          else
+            sendJson(res, 503, {
+              error: `the audit log cannot be read: ${ctx.scrub(e instanceof Error ? e.message : String(e))}`,
+            });
         }
         return;
       }

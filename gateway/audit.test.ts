@@ -63,7 +63,10 @@ describe('the audit table (history.sqlite)', () => {
     const all = Array.from({ length: 150 }, (_, n) => entry(n));
     for (const e of all) a.append(e);
     a.append({ ...entry(150), machine: undefined, type: 'login', user: 'sam', onBehalfOf: 'u1' });
-    const everything = [...all, { ...entry(150), machine: undefined, type: 'login' as const, user: 'sam', onBehalfOf: 'u1' }];
+    const everything = [
+      ...all,
+      { ...entry(150), machine: undefined, type: 'login' as const, user: 'sam', onBehalfOf: 'u1' },
+    ];
     const queries: AuditQuery[] = [
       {},
       { machine: 'a' },
@@ -99,16 +102,47 @@ describe('the audit table (history.sqlite)', () => {
   it('keeps commands, logins and settings 400 days; refusals 30 days and at most refusalMax', () => {
     let now = T0;
     const a = opened(dir(), { now: () => now, retention: { refusalMax: 20 } });
-    a.append({ time: new Date(now).toISOString(), type: 'command', result: 'ok', user: 'sam', source: 'gateway', machine: 'p1' });
-    a.append({ time: new Date(now).toISOString(), type: 'login', result: 'ok', user: 'sam', source: 'gateway' });
-    a.append({ time: new Date(now).toISOString(), type: 'settings', result: 'ok', user: 'sam', source: 'gateway' });
+    a.append({
+      time: new Date(now).toISOString(),
+      type: 'command',
+      result: 'ok',
+      user: 'sam',
+      source: 'gateway',
+      machine: 'p1',
+    });
+    a.append({
+      time: new Date(now).toISOString(),
+      type: 'login',
+      result: 'ok',
+      user: 'sam',
+      source: 'gateway',
+    });
+    a.append({
+      time: new Date(now).toISOString(),
+      type: 'settings',
+      result: 'ok',
+      user: 'sam',
+      source: 'gateway',
+    });
     for (let i = 0; i < 100; i++)
-      a.append({ time: new Date(now + i).toISOString(), type: 'refused', result: 'refused', user: 'vic', source: 'gateway', detail: `r${i}` });
+      a.append({
+        time: new Date(now + i).toISOString(),
+        type: 'refused',
+        result: 'refused',
+        user: 'vic',
+        source: 'gateway',
+        detail: `r${i}`,
+      });
     const refusals = () => a.all().filter((e) => e.type === 'refused');
     // Bounded in count, the newest kept; the records untouched.
     expect(refusals()).toHaveLength(20);
     expect(refusals().at(-1)?.detail).toBe('r99');
-    expect(a.all().filter((e) => e.type !== 'refused').map((e) => e.type)).toEqual(['command', 'login', 'settings']);
+    expect(
+      a
+        .all()
+        .filter((e) => e.type !== 'refused')
+        .map((e) => e.type),
+    ).toEqual(['command', 'login', 'settings']);
     // 31 days later the refusals are gone, the records stay …
     now = T0 + 31 * DAY;
     a.prune();
@@ -145,10 +179,16 @@ describe('the audit table (history.sqlite)', () => {
   it('a command is committed as pending before it is sent; a killed gateway’s pending one is closed at the next start', () => {
     const d = dir();
     const a = opened(d);
-    const { id, entry: e } = a.begin({ type: 'command', user: 'sam', source: 'gateway', machine: 'p1', path: '/job?action=stop' });
+    const { id, entry: e } = a.begin({
+      type: 'command',
+      user: 'sam',
+      source: 'gateway',
+      machine: 'p1',
+      path: '/job?action=stop',
+    });
     // Another connection (a new process after a SIGKILL) sees it at once.
     const other = new Database(path.join(d, AUDIT_DB_FILE), { readonly: true });
-    expect(other.prepare("SELECT result FROM audit WHERE id = ?").get(id)).toEqual({ result: 'pending' });
+    expect(other.prepare('SELECT result FROM audit WHERE id = ?').get(id)).toEqual({ result: 'pending' });
     other.close();
     a.finish(id, { ...e, result: 'ok', status: 200 });
     expect(a.all()[0]).toMatchObject({ result: 'ok', status: 200 });
@@ -165,7 +205,9 @@ describe('the audit table (history.sqlite)', () => {
     const tool = new AuditLog(d, { log: captured().log });
     tool.append({ type: 'role-change', result: 'ok', user: 'otto', source: 'cli' });
     void tool.close();
-    expect(b.all().find((x) => x.time === pending.entry.time && x.type === 'command')?.result).toBe('pending');
+    expect(b.all().find((x) => x.time === pending.entry.time && x.type === 'command')?.result).toBe(
+      'pending',
+    );
     expect(b.all().at(-1)?.type).toBe('role-change');
   });
 });
@@ -191,10 +233,12 @@ describe('attacks on the audit log', () => {
     for (let sent = 0; sent < 2000; sent += 50) {
       const answers = await Promise.all(
         Array.from({ length: 50 }, () =>
-          consoleFetch(`${gw.url}/machines/p1/job?action=stop`, { headers: { cookie: vic } }).then(async (r) => {
-            await r.arrayBuffer();
-            return r.status;
-          }),
+          consoleFetch(`${gw.url}/machines/p1/job?action=stop`, { headers: { cookie: vic } }).then(
+            async (r) => {
+              await r.arrayBuffer();
+              return r.status;
+            },
+          ),
         ),
       );
       refused += answers.filter((st) => st === 403).length;
@@ -211,7 +255,11 @@ describe('attacks on the audit log', () => {
     const vics = all.filter((e) => e.type === 'refused' && e.user === 'vic');
     // Bounded in count, and aggregated: at most 10 written one by one per minute, the rest summed.
     expect(vics.length).toBeLessThanOrEqual(40);
-    const summaries = vics.filter((e) => /^\d+ more refused requests by vic \(from .*\) in the last minute \(machines: p1\)$/.test(e.detail ?? ''));
+    const summaries = vics.filter((e) =>
+      /^\d+ more refused requests by vic \(from .*\) in the last minute \(machines: p1\)$/.test(
+        e.detail ?? '',
+      ),
+    );
     expect(summaries.length).toBeGreaterThan(0);
     const single = vics.filter((e) => !summaries.includes(e));
     const perMinute = new Map<number, number>();
@@ -236,7 +284,11 @@ describe('attacks on the audit log', () => {
       // reads after a SIGKILL now): the entry is there already.
       const db = new Database(file, { readonly: true });
       atController.push(
-        db.prepare("SELECT type, result, json_extract(entry, '$.path') AS path FROM audit WHERE type = 'command' ORDER BY id DESC").get(),
+        db
+          .prepare(
+            "SELECT type, result, json_extract(entry, '$.path') AS path FROM audit WHERE type = 'command' ORDER BY id DESC",
+          )
+          .get(),
       );
       db.close();
       res.writeHead(200, { 'Content-Type': 'application/json' });
@@ -263,7 +315,10 @@ describe('attacks on the audit log', () => {
     cleanups.push(broken.close);
     const r = await consoleFetch(`${broken.url}/machines/p1/job?action=stop`);
     expect(r.status).toBe(503);
-    expect(await r.json()).toMatchObject({ gateway: true, error: expect.stringMatching(/audit log cannot be written/) });
+    expect(await r.json()).toMatchObject({
+      gateway: true,
+      error: expect.stringMatching(/audit log cannot be written/),
+    });
     expect(s.seen).toHaveLength(0);
     expect(c.lines.join('\n')).toMatch(/a command was refused: its audit entry cannot be written/);
     // Reads still work.

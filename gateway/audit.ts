@@ -148,7 +148,8 @@ const DAY_MS = 86_400_000;
 const REOPEN_MS = 5000;
 const PRUNE_EVERY_MS = 3_600_000;
 const CSV_PAGE = 500;
-const KILLED = 'not confirmed: the console stopped before the answer came (it may or may not have reached the machine)';
+const KILLED =
+  'not confirmed: the console stopped before the answer came (it may or may not have reached the machine)';
 
 function kindOf(e: AuditEntry): 'record' | 'refusal' {
   return REFUSAL_TYPES.has(e.type) ? 'refusal' : 'record';
@@ -168,7 +169,8 @@ function where(q: AuditQuery): { sql: string; args: Array<string | number> } {
     args.push(...values);
   };
   if (q.machine) add('machine = ?', q.machine);
-  if (q.machines) add('(machine IS NULL OR machine IN (SELECT value FROM json_each(?)))', JSON.stringify(q.machines));
+  if (q.machines)
+    add('(machine IS NULL OR machine IN (SELECT value FROM json_each(?)))', JSON.stringify(q.machines));
   if (q.user) add('(user = ? OR on_behalf_of = ?)', q.user, q.user);
   if (q.result) add('result = ?', q.result);
   if (q.from !== undefined) add('at >= ?', q.from);
@@ -205,6 +207,8 @@ export class AuditLog {
     this.log = opts.log ?? loggerFromEnv();
     this.now = opts.now ?? Date.now;
     this.role = opts.role ?? 'tool';
+    // A tool (npm run user) holds the database only for each write or read.
+    this.closed = this.role === 'tool';
     if (this.role === 'server') {
       try {
         this.open();
@@ -230,15 +234,16 @@ export class AuditLog {
       if (this.role === 'server' && !this.swept) {
         // Commands of a previous run that never got their outcome (the process was killed).
         this.swept = true;
-        const pending = db
-          .prepare("SELECT id, entry FROM audit WHERE result = 'pending'")
-          .all() as Row[];
+        const pending = db.prepare("SELECT id, entry FROM audit WHERE result = 'pending'").all() as Row[];
         const close = db.prepare("UPDATE audit SET result = 'error', entry = ? WHERE id = ?");
         db.transaction(() => {
-          for (const r of pending) close.run(JSON.stringify({ ...parse(r), result: 'error', error: KILLED }), r.id);
+          for (const r of pending)
+            close.run(JSON.stringify({ ...parse(r), result: 'error', error: KILLED }), r.id);
         })();
       }
-      this.refusals = (db.prepare("SELECT COUNT(*) AS n FROM audit WHERE kind = 'refusal'").get() as { n: number }).n;
+      this.refusals = (
+        db.prepare("SELECT COUNT(*) AS n FROM audit WHERE kind = 'refusal'").get() as { n: number }
+      ).n;
       if (this.problem) this.log.info('the audit log is written again', { file: this.file });
       this.problem = null;
       this.db = db;
@@ -285,7 +290,8 @@ export class AuditLog {
           if (!line.trim()) continue;
           try {
             const e = JSON.parse(line) as AuditEntry;
-            if (!e || typeof e !== 'object' || typeof e.time !== 'string' || typeof e.type !== 'string') throw new Error();
+            if (!e || typeof e !== 'object' || typeof e.time !== 'string' || typeof e.type !== 'string')
+              throw new Error();
             insert(e);
             count++;
           } catch {
@@ -359,7 +365,11 @@ export class AuditLog {
   /** The command's outcome, after its answer. */
   finish(id: number, entry: AuditEntry): void {
     const db = this.open();
-    db.prepare('UPDATE audit SET result = ?, entry = ? WHERE id = ?').run(entry.result, JSON.stringify(entry), id);
+    db.prepare('UPDATE audit SET result = ?, entry = ? WHERE id = ?').run(
+      entry.result,
+      JSON.stringify(entry),
+      id,
+    );
     if (this.closed) this.shut();
   }
 
@@ -376,7 +386,9 @@ export class AuditLog {
     n += db
       .prepare("DELETE FROM audit WHERE kind = 'refusal' AND at < ?")
       .run(t - this.retention.refusalDays * DAY_MS).changes;
-    const count = (db.prepare("SELECT COUNT(*) AS n FROM audit WHERE kind = 'refusal'").get() as { n: number }).n;
+    const count = (
+      db.prepare("SELECT COUNT(*) AS n FROM audit WHERE kind = 'refusal'").get() as { n: number }
+    ).n;
     if (count > this.retention.refusalMax)
       n += db
         .prepare(
@@ -422,7 +434,9 @@ export class AuditLog {
 
   /** Every entry, oldest first, synchronously: for tests and tools. */
   all(): AuditEntry[] {
-    return this.read((db) => (db.prepare('SELECT id, entry FROM audit ORDER BY at, id').all() as Row[]).map(parse));
+    return this.read((db) =>
+      (db.prepare('SELECT id, entry FROM audit ORDER BY at, id').all() as Row[]).map(parse),
+    );
   }
 
   /** A page of the filtered entries, newest first, and how many match in all. */
@@ -435,7 +449,8 @@ export class AuditLog {
         const rows = db
           .prepare(`SELECT id, entry FROM audit ${w.sql} ORDER BY at DESC, id DESC LIMIT ? OFFSET ?`)
           .all(...w.args, limit, offset) as Row[];
-        const total = (db.prepare(`SELECT COUNT(*) AS n FROM audit ${w.sql}`).get(...w.args) as { n: number }).n;
+        const total = (db.prepare(`SELECT COUNT(*) AS n FROM audit ${w.sql}`).get(...w.args) as { n: number })
+          .n;
         return { entries: rows.map(parse), total };
       }),
     );
@@ -447,7 +462,9 @@ export class AuditLog {
     let last: { at: number; id: number } | null = null;
     for (;;) {
       const after: { at: number; id: number } | null = last;
-      const cond: string = after ? `${w.sql ? `${w.sql} AND` : 'WHERE'} (at < ? OR (at = ? AND id < ?))` : w.sql;
+      const cond: string = after
+        ? `${w.sql ? `${w.sql} AND` : 'WHERE'} (at < ? OR (at = ? AND id < ?))`
+        : w.sql;
       const args: Array<string | number> = after ? [...w.args, after.at, after.at, after.id] : w.args;
       const rows: Array<Row & { at: number }> = this.read(
         (db) =>

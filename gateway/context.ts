@@ -833,7 +833,7 @@ export class RefusalAggregator {
       if (!w.more) continue;
       const span = this.limit.windowMs === 60_000 ? 'minute' : `${Math.round(this.limit.windowMs / 1000)} s`;
       const by = w.user === 'nobody' ? `from ${w.address}` : `by ${w.user} (from ${w.address})`;
-      const on = w.machines.size ? ` (machines: ${[...w.machines].join(', ')})` : '';
+      const on = w.user !== 'nobody' && w.machines.size ? ` (machines: ${[...w.machines].join(', ')})` : '';
       this.write({
         type: 'refused',
         result: 'refused',

@@ -225,7 +225,15 @@ describe('log injection (controller text in log lines)', () => {
       machines: {
         file: null,
         machines: [
-          { id: 'p1', name: 'P', kind: 'prunt', simulated: false, url: new URL(url), wsUrl: null, secrets: {} },
+          {
+            id: 'p1',
+            name: 'P',
+            kind: 'prunt',
+            simulated: false,
+            url: new URL(url),
+            wsUrl: null,
+            secrets: {},
+          },
         ],
       },
       families: { prunt: family },
@@ -248,9 +256,11 @@ describe('log injection (controller text in log lines)', () => {
       const gw = await watched(lines, json, s.url);
       cleanups.push(gw.close);
       const end = Date.now() + 8000;
-      while (!lines.some((l) => l.includes('alarm')) && Date.now() < end) await new Promise((r) => setTimeout(r, 20));
+      while (!lines.some((l) => l.includes('alarm')) && Date.now() < end)
+        await new Promise((r) => setTimeout(r, 20));
       gw.gw.close();
       // Every write is one line: no line break, no terminal control of any kind.
+      // eslint-disable-next-line no-control-regex
       for (const l of lines) expect(l).not.toMatch(/[\u0000-\u001f\u007f-\u009f\u2028\u2029]/);
       const started = lines.filter((l) => l.includes('job started'));
       const alarm = lines.filter((l) => l.includes('FORGED'));
@@ -260,7 +270,9 @@ describe('log injection (controller text in log lines)', () => {
       expect(lines.filter((l) => /^shopdeck: machine p1 online|^shopdeck: warn: FORGED/.test(l))).toEqual([]);
       if (json) {
         // The JSON is valid and gives the text back exactly.
-        expect((JSON.parse(started[0] ?? '') as { msg: string }).msg).toBe(`p1: job started (started: ${JOB})`);
+        expect((JSON.parse(started[0] ?? '') as { msg: string }).msg).toBe(
+          `p1: job started (started: ${JOB})`,
+        );
         expect((JSON.parse(alarm[0] ?? '') as { msg: string }).msg).toBe(`p1: alarm (${ALARM})`);
       } else {
         expect(started[0]).toBe(

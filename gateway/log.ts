@@ -53,7 +53,6 @@ export function escapeControls(text: string): string {
 }
 
 /** JSON.stringify escapes C0 controls itself; DEL, C1 and the separators are escaped here too. */
-// eslint-disable-next-line no-control-regex
 const JSON_LEFT = /[\u007f-\u009f\u2028\u2029]/g;
 function jsonLine(v: unknown): string {
   return JSON.stringify(v).replace(JSON_LEFT, (c) => `\\u${c.charCodeAt(0).toString(16).padStart(4, '0')}`);

@@ -290,7 +290,11 @@ export function createHttpProxy(ctx: GatewayContext) {
       : null;
     if (isCommand && !audit) {
       req.resume();
-      gatewayError(res, 503, `${decision.label}: not sent, the audit log cannot be written (see the server log)`);
+      gatewayError(
+        res,
+        503,
+        `${decision.label}: not sent, the audit log cannot be written (see the server log)`,
+      );
       return;
     }
     /** A command's outcome, audited once (the first word on it counts: a deadline, a cut answer…). */

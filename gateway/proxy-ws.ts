@@ -111,7 +111,12 @@ export function createWsProxy(ctx: GatewayContext) {
     // A socket the family classifies as a command is audited before it is opened (committed);
     // one that cannot be audited is not opened.
     const audit = decision.command
-      ? ctx.beginCommand({ ...base, commandId: decision.id, user: v.principal.name, onBehalfOf: v.principal.onBehalfOf })
+      ? ctx.beginCommand({
+          ...base,
+          commandId: decision.id,
+          user: v.principal.name,
+          onBehalfOf: v.principal.onBehalfOf,
+        })
       : null;
     if (decision.command && !audit)
       return rejectUpgrade(socket, 503, {

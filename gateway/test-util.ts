@@ -325,7 +325,9 @@ export const testAccess: AccessPolicy = (req) => {
     return supervisor(`job action ${a ?? ''}`);
   }
   if (req.method === 'POST' && req.path === '/code') {
-    return /^\s*M25\s*$/.test(req.body ?? '') ? operator('pause (M25)', 'test.pause') : supervisor('send G-code');
+    return /^\s*M25\s*$/.test(req.body ?? '')
+      ? operator('pause (M25)', 'test.pause')
+      : supervisor('send G-code');
   }
   if (req.method === 'POST' && req.path === '/settings') return supervisor('change settings');
   if (req.method === 'GET' || req.method === 'HEAD') return read();

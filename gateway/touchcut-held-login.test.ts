@@ -371,7 +371,9 @@ describe('held TouchCut login: the JWT stays in the gateway', () => {
     const st = await send(s, 'GET', status(), s.viewer);
     expect(JSON.parse(st.text)).toMatchObject({ currentUser: 'operator' });
     const log = await audit(s);
-    const entries = (JSON.parse(log) as Array<Record<string, unknown>>).filter((e) => e.path === '/rest/v1/auth');
+    const entries = (JSON.parse(log) as Array<Record<string, unknown>>).filter(
+      (e) => e.path === '/rest/v1/auth',
+    );
     expect(entries.map((e) => [e.type, e.result, e.user, e.method, e.status])).toEqual([
       ['refused', 'refused', 'vic', 'POST', undefined],
       ['command', 'error', 'ola', 'POST', 400],

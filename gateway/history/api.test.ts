@@ -3,7 +3,16 @@ import path from 'node:path';
 import { afterEach, describe, expect, it } from 'vitest';
 import type { WatchSummary } from '../../src/fleet/contract';
 import type { MachineEntry } from '../machines';
-import { consoleFetch, login, startGateway, tempDir, testAccess, testFamily, user, writeJson } from '../test-util';
+import {
+  consoleFetch,
+  login,
+  startGateway,
+  tempDir,
+  testAccess,
+  testFamily,
+  user,
+  writeJson,
+} from '../test-util';
 import { S } from './summary.test-util';
 
 /** `/api/history/*` through the real gateway: who sees what, CSV safety, settings, a missing store. */

@@ -75,7 +75,9 @@ export const xtoolAccess: AccessPolicy = (req: AccessRequest): AccessDecision =>
     if (isGet) {
       const action = req.query.get('action') ?? '';
       const label = Object.hasOwn(JOB_ACTIONS, action) ? JOB_ACTIONS[action] : undefined;
-      return label ? operator(label, `xtool.${action}`) : supervisor(`job action "${action}" (unknown: supervisor only)`);
+      return label
+        ? operator(label, `xtool.${action}`)
+        : supervisor(`job action "${action}" (unknown: supervisor only)`);
     }
     // POST /cnc/data is the same upload as POST /upload (document).
     if (method === 'POST') return operator('upload a job file');
