@@ -2,7 +2,14 @@ import { existsSync, mkdirSync, writeFileSync } from 'node:fs';
 import path from 'node:path';
 import Database from 'better-sqlite3';
 import { afterEach, describe, expect, it } from 'vitest';
+import { duetAccess } from '../src/controllers/duet/access';
+import { g2coreAccess, g2coreAccessNeedsBody } from '../src/controllers/g2core/access';
+import { pruntAccess } from '../src/controllers/prunt/access';
+import { touchcutAccess } from '../src/controllers/touchcut/access';
+import { xtoolAccess } from '../src/controllers/xtool/access';
 import { xtoolFamily } from '../src/controllers/xtool/family';
+import type { AccessPolicy } from '../src/fleet/access';
+import { JOB_COMMANDS } from './history/store';
 import type { WatchSummary } from '../src/fleet/contract';
 import { AUDIT_DB_FILE, AuditLog, type AuditEntry, type AuditQuery } from './audit';
 import { createLogger, type Logger } from './log';
@@ -351,5 +358,57 @@ describe('attacks on the audit log', () => {
       headers: { 'X-Shopdeck-Command': 'xtool.pause' },
     });
     expect(outcome()).toBe('cancelled');
+  });
+});
+
+describe('the command a request is, as the families classify it (the audit’s commandId)', () => {
+  const ask = (policy: AccessPolicy, method: string, target: string, body?: string) => {
+    const [p, q] = target.split('?');
+    return policy({ method, path: p ?? '/', query: new URLSearchParams(q ?? ''), body }).id;
+  };
+
+  it('names every job command from the request itself, and only job commands the history knows', () => {
+    const cases: Array<[string | undefined, string | undefined]> = [
+      [ask(xtoolAccess, 'GET', '/cnc/data?action=pause'), 'xtool.pause'],
+      [ask(xtoolAccess, 'GET', '/cnc/data?action=stop'), 'xtool.stop'],
+      [ask(xtoolAccess, 'GET', '/cnc/data?action=resume'), 'xtool.resume'],
+      [ask(xtoolAccess, 'GET', '/read?file=/a.gcode'), 'xtool.run-file'],
+      [ask(xtoolAccess, 'GET', '/cnc/data?action=constructor'), undefined],
+      [ask(pruntAccess, 'POST', '/pause/pause'), 'prunt.pause'],
+      [ask(pruntAccess, 'POST', '/cancel'), 'prunt.cancel'],
+      [ask(pruntAccess, 'POST', '/run-file'), 'prunt.runFile'],
+      [ask(duetAccess, 'POST', '/machine/code', 'M25'), 'duet.pause'],
+      [ask(duetAccess, 'POST', '/machine/code', 'M24'), 'duet.resume'],
+      [ask(duetAccess, 'POST', '/machine/code', 'M0'), 'duet.cancel'],
+      [ask(duetAccess, 'POST', '/machine/code', 'M112\nM999'), 'duet.estop'],
+      [ask(duetAccess, 'POST', '/machine/code', 'M32 "0:/gcodes/a.gcode"'), 'duet.start'],
+      // A pause that also cancels is a cancel.
+      [ask(duetAccess, 'POST', '/machine/code', 'M25\nM0'), 'duet.cancel'],
+      [ask(duetAccess, 'GET', '/rr_gcode?gcode=M25'), 'duet.pause'],
+      [ask(g2coreAccess, 'PUT', '/operation/7', '{"opstate":"pause"}'), 'g2core.feedhold'],
+      [ask(g2coreAccess, 'PUT', '/operation/7', '{"opstate":"run"}'), 'g2core.resume'],
+      [ask(g2coreAccess, 'PUT', '/operation/7', '{"opstate":"kill"}'), 'g2core.kill'],
+      [ask(g2coreAccess, 'PUT', '/job/3', '{"state":"run"}'), 'g2core.run-job'],
+      [ask(g2coreAccess, 'PUT', '/job/3', '{"state":"kill"}'), 'g2core.kill'],
+      [ask(g2coreAccess, 'PUT', '/job/3', '{"state":"kill","state":"run"}'), undefined],
+      [ask(g2coreAccess, 'PUT', '/job/3', '{"position":2}'), undefined],
+    ];
+    for (const [got, want] of cases) expect(got).toBe(want);
+    for (const [got] of cases) if (got && got !== 'duet.simulate') expect(JOB_COMMANDS[got]).toBeDefined();
+    // The same class of mistake (a name looked up among an object's inherited keys) is closed:
+    // an action or resource called `constructor` is unknown, so supervisor only.
+    const role = (policy: AccessPolicy, target: string) =>
+      policy({
+        method: 'GET',
+        path: target.split('?')[0] ?? '/',
+        query: new URLSearchParams(target.split('?')[1] ?? ''),
+      }).role;
+    expect(role(xtoolAccess, '/cnc/data?action=constructor')).toBe('supervisor');
+    expect(role(touchcutAccess, '/rest/v1/constructor')).toBe('supervisor');
+    expect(role(touchcutAccess, '/rest/v1/__proto__')).toBe('supervisor');
+    expect(role(touchcutAccess, '/rest/v1/status')).toBe('viewer');
+    // g2core's controls are read to be classified.
+    expect(g2coreAccessNeedsBody('PUT', '/job/3')).toBe(true);
+    expect(g2coreAccessNeedsBody('PUT', '/operation/7')).toBe(true);
   });
 });
