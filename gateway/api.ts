@@ -2,7 +2,7 @@ import { listPins, pinInfo } from './tls-pin';
 import { type IncomingMessage, type ServerResponse } from 'node:http';
 import { z } from 'zod';
 import { mostSevereAlarm, roleAtLeast, type ServerWatch } from '../src/fleet/types';
-import { auditQueryFrom, toCsv } from './audit';
+import { auditQueryFrom, streamCsv } from './audit';
 import { LoginHistory, SESSION_COOKIE, type LimitKey } from './auth';
 import { discoverXtool } from './discovery';
 import { clientAddress, parseCookies, readJson, sendJson } from './http-util';
@@ -464,16 +464,15 @@ export function createApi(ctx: GatewayContext, stores: ApiStores = createAlarmSt
           return;
         }
         const q = { ...auditQueryFrom(url.searchParams), machines: w.principal.machines };
-        if (url.pathname.endsWith('.csv')) {
-          const csv = toCsv(await audit.filtered(q));
-          res.writeHead(200, {
-            'Content-Type': 'text/csv; charset=utf-8',
-            'Content-Disposition': 'attachment; filename="shopdeck-audit.csv"',
-            'Cache-Control': 'no-store',
-          });
-          res.end(csv);
-        } else {
-          sendJson(res, 200, await audit.query(q));
+        try {
+          if (url.pathname.endsWith('.csv')) await streamCsv(audit, q, res);
+          else sendJson(res, 200, await audit.query(q));
+        } catch (e) {
+          if (res.headersSent) res.destroy();
+          else
+            sendJson(res, 503, {
+              error: `the audit log cannot be read: ${ctx.scrub(e instanceof Error ? e.message : String(e))}`,
+            });
         }
         return;
       }

@@ -1,5 +1,11 @@
-import { describe, expect, it } from 'vitest';
+import { afterEach, describe, expect, it } from 'vitest';
 import { CSV_COLUMNS, toCsv, type AuditEntry } from './audit';
+import { consoleFetch, gatewayFor, type Cleanups } from './test-util';
+
+const cleanups: Cleanups = [];
+afterEach(async () => {
+  for (const c of cleanups.splice(0).reverse()) await c();
+});
 
 const entry = (e: Partial<AuditEntry>): AuditEntry => ({
   time: '2026-03-18T12:00:00.000Z',
@@ -52,5 +58,22 @@ describe('audit CSV (GET /api/audit.csv)', () => {
     expect(csv).toContain(`,"two\nlines",`);
     // Missing fields are empty.
     expect(csv.split('\r\n')[1]).toMatch(/^2026-03-18T12:00:00.000Z,command,ok,"Jürgen, ""J""",,/);
+  });
+
+  it('is streamed from the table, page by page, newest first, with the filters of the API', async () => {
+    const gw = await gatewayFor(cleanups, []);
+    const base = Date.UTC(2026, 2, 18);
+    for (let n = 0; n < 1100; n++)
+      gw.gw.audit.append(
+        entry({ time: new Date(base + n * 1000).toISOString(), machine: n % 2 ? 'a' : 'b', detail: `#${n}` }),
+      );
+    const r = await consoleFetch(`${gw.url}/api/audit.csv?machine=a`);
+    expect(r.status).toBe(200);
+    expect(r.headers.get('content-type')).toBe('text/csv; charset=utf-8');
+    const body = Buffer.from(await r.arrayBuffer()).toString('utf8');
+    const want = await gw.gw.audit.filtered({ machine: 'a' });
+    expect(want).toHaveLength(550);
+    expect(want[0]?.detail).toBe('#1099');
+    expect(body).toBe(toCsv(want));
   });
 });

@@ -71,10 +71,10 @@ export interface GatewayOptions {
   /** Where the gateway's log lines go (default: `SHOPDECK_LOG=json` or text, stdout/stderr). */
   log?: Logger;
   /**
-   * The audit writer (tests): rotation size and file count default to `SHOPDECK_AUDIT_MAX_BYTES`
-   * (10 MiB) and `SHOPDECK_AUDIT_KEEP` (5).
+   * The audit log (tests): retention defaults to `SHOPDECK_AUDIT_DAYS` (400),
+   * `SHOPDECK_AUDIT_REFUSAL_DAYS` (30) and `SHOPDECK_AUDIT_REFUSAL_MAX` (100,000).
    */
-  audit?: Omit<AuditLogOptions, 'writer'>;
+  audit?: Omit<AuditLogOptions, 'role'>;
   /** Bounds of the shared upstream (upstream-http.ts; tests): queue, kept answers, sizes. */
   upstream?: Partial<UpstreamLimits>;
   /**
@@ -159,8 +159,14 @@ export interface GatewayContext {
    */
   learnSecret(machineId: string, value: string, known?: boolean): void;
   hostAllowed(req: IncomingMessage): boolean;
-  /** Writes an audit entry; refusals of unauthenticated clients pass `refusals` first. */
+  /** Writes an audit entry; refusals pass `refusals` first (limited per user or address). */
   record(e: Omit<AuditEntry, 'time'>): void;
+  /**
+   * A command's audit entry, committed before the command is forwarded (audit.ts `begin`); its
+   * `done` writes the outcome and tells the `onRecord` listeners. Null: the entry could not be
+   * written (logged): the command must not be forwarded (answer 503).
+   */
+  beginCommand(e: Omit<AuditEntry, 'time' | 'result' | 'type'>): CommandAudit | null;
   /** Calls `listener` with every record written after it (the job history's commands); returns the removal. */
   onRecord(listener: (e: Omit<AuditEntry, 'time'>) => void): () => void;
   /** Limits refusals of unauthenticated clients per address (`dispose()` writes what is pending). */
@@ -188,6 +194,11 @@ export interface GatewayContext {
   readonly builtInDemo: boolean;
   /** Runs the simulator's "demo" control (a job in progress), when it has one. */
   startDemoJob(m: MachineEntry): void;
+}
+
+export interface CommandAudit {
+  /** The outcome (once; later calls do nothing). */
+  done(r: { status?: number; error?: string }): void;
 }
 
 export interface MachineHints {
@@ -218,11 +229,20 @@ export function createContext(opts: GatewayOptions): GatewayContext {
   const reachability = new Reachability(log);
   const users = new UserDirectory(usersFile, log);
   const audit = new AuditLog(dataDir, {
-    writer: 'queue',
-    maxBytes: envNumber(env, 'SHOPDECK_AUDIT_MAX_BYTES'),
-    keep: envNumber(env, 'SHOPDECK_AUDIT_KEEP'),
+    role: 'server',
     log,
+    now,
     ...opts.audit,
+    retention: {
+      ...(envNumber(env, 'SHOPDECK_AUDIT_DAYS') ? { recordDays: envNumber(env, 'SHOPDECK_AUDIT_DAYS') } : {}),
+      ...(envNumber(env, 'SHOPDECK_AUDIT_REFUSAL_DAYS')
+        ? { refusalDays: envNumber(env, 'SHOPDECK_AUDIT_REFUSAL_DAYS') }
+        : {}),
+      ...(envNumber(env, 'SHOPDECK_AUDIT_REFUSAL_MAX')
+        ? { refusalMax: envNumber(env, 'SHOPDECK_AUDIT_REFUSAL_MAX') }
+        : {}),
+      ...opts.audit?.retention,
+    },
   });
   const timeoutMs = opts.timeoutMs ?? envNumber(env, 'SHOPDECK_PROXY_TIMEOUT_MS') ?? 15_000;
   const idle: IdleTimeouts = {
@@ -325,11 +345,48 @@ export function createContext(opts: GatewayOptions): GatewayContext {
       log.error('could not write the audit log', { error: String(err) });
     }
   };
-  // Refusals of unauthenticated clients (and of the login/PIN limiter) are limited per address.
+  // Refusals (and attempts the login/PIN limiter refused) are limited per user, or per address
+  // for clients without a session.
   const refusals = new RefusalAggregator(REFUSAL_LIMIT, now, append);
   const recordListeners = new Set<(e: Omit<AuditEntry, 'time'>) => void>();
   const record = (e: Omit<AuditEntry, 'time'>): void => {
     if (refusals.admit(e)) append(e);
+    tell(e);
+  };
+  const beginCommand = (e: Omit<AuditEntry, 'time' | 'result' | 'type'>): CommandAudit | null => {
+    let begun: { entry: AuditEntry; id: number };
+    try {
+      begun = audit.begin({ ...e, type: 'command', time: nowIso() });
+    } catch (err) {
+      log.error('a command was refused: its audit entry cannot be written', {
+        machine: e.machine,
+        user: e.user,
+        label: e.label,
+        error: String(err),
+      });
+      return null;
+    }
+    let finished = false;
+    return {
+      done(r) {
+        if (finished) return;
+        finished = true;
+        const ok = r.status !== undefined && r.status < 400 && r.error === undefined;
+        const entry: AuditEntry = { ...begun.entry, result: ok ? 'ok' : 'error', ...r };
+        try {
+          audit.finish(begun.id, entry);
+        } catch (err) {
+          log.error('could not write the outcome of a command to the audit log', {
+            machine: e.machine,
+            error: String(err),
+          });
+        }
+        const { time: _time, ...rest } = entry;
+        tell(rest);
+      },
+    };
+  };
+  const tell = (e: Omit<AuditEntry, 'time'>): void => {
     for (const l of recordListeners) {
       try {
         l(e);
@@ -666,6 +723,7 @@ export function createContext(opts: GatewayOptions): GatewayContext {
     upstreamStats,
     hostAllowed,
     record,
+    beginCommand,
     onRecord,
     scrub,
     who,
@@ -696,7 +754,7 @@ export function createContext(opts: GatewayOptions): GatewayContext {
 
 export interface RefusalLimit {
   windowMs: number;
-  /** Entries per address written in a window; the rest are counted into one summary. */
+  /** Entries per user (or per address, without a session) written in a window; the rest are counted into one summary. */
   firstN: number;
 }
 
@@ -705,22 +763,34 @@ export const REFUSAL_LIMIT: RefusalLimit = { windowMs: 60_000, firstN: 10 };
 type AuditRecord = Omit<AuditEntry, 'time'>;
 
 /**
- * What anyone can make the gateway write without logging in, as often as they like: refusals of
- * clients without a session (`user: "nobody"`) and attempts the login/PIN limiter refused.
+ * What a client can make the gateway write as often as it likes: refusals (of anyone: a signed-in
+ * viewer's forged commands as much as a client without a session) and attempts the login/PIN
+ * limiter refused.
  */
 function floodable(e: AuditRecord): boolean {
-  if (e.type === 'refused') return e.user === 'nobody';
+  if (e.type === 'refused') return true;
   return (e.type === 'login-failed' || e.type === 'elevate-failed') && e.result === 'refused';
 }
 
+interface RefusalWindow {
+  start: number;
+  written: number;
+  more: number;
+  user: string;
+  address: string;
+  machines: Set<string>;
+}
+
 /**
- * Keeps such refusals from filling the audit log: per address, the first `firstN` in a window
- * are written, the rest counted and written as ONE entry ("37 more refused requests from
- * 10.0.0.9 in the last minute", timed at the window's end) when the window ends: on the next
- * record (`admit`) or from an unref'd timer, whichever comes first. Everything else passes.
+ * Keeps refusals from filling the audit log: per signed-in user (`user: "nobody"`, no session:
+ * per address), the first `firstN` in a window are written, the rest counted and written as ONE
+ * entry ("37 more refused requests by vic (from 10.0.0.9) in the last minute", timed at the
+ * window's end) when the window ends: on the next record (`admit`) or from an unref'd timer,
+ * whichever comes first. Everything else passes. (Refusals are also kept apart from commands in
+ * the audit table, audit.ts: they never push a command out.)
  */
 export class RefusalAggregator {
-  private windows = new Map<string, { start: number; written: number; more: number }>();
+  private windows = new Map<string, RefusalWindow>();
   private timer: NodeJS.Timeout | null = null;
 
   constructor(
@@ -729,42 +799,48 @@ export class RefusalAggregator {
     private readonly write: (e: AuditRecord & { time: string }) => void,
   ) {}
 
-  /** True: write `e` now. False: it was counted into the address's summary. */
+  /** True: write `e` now. False: it was counted into its user's (or address's) summary. */
   admit(e: AuditRecord): boolean {
     const t = this.now();
     this.flush(t);
     if (!floodable(e)) return true;
     const address = e.address ?? 'unknown';
-    let w = this.windows.get(address);
+    const user = e.user || 'nobody';
+    const key = user === 'nobody' ? `address ${address}` : `user ${user}`;
+    let w = this.windows.get(key);
     if (!w) {
       if (this.windows.size >= 10_000) this.flush(Number.POSITIVE_INFINITY);
-      w = { start: t, written: 0, more: 0 };
-      this.windows.set(address, w);
+      w = { start: t, written: 0, more: 0, user, address, machines: new Set() };
+      this.windows.set(key, w);
     }
     if (w.written < this.limit.firstN) {
       w.written++;
       return true;
     }
     w.more++;
+    w.address = address;
+    if (e.machine && w.machines.size < 5) w.machines.add(e.machine);
     this.arm();
     return false;
   }
 
   /** Writes the summaries of the windows that ended by `t` (every window: `Infinity`). */
   flush(t: number = this.now()): void {
-    for (const [address, w] of this.windows) {
+    for (const [key, w] of this.windows) {
       const end = w.start + this.limit.windowMs;
       if (end > t) continue;
-      this.windows.delete(address);
+      this.windows.delete(key);
       if (!w.more) continue;
       const span = this.limit.windowMs === 60_000 ? 'minute' : `${Math.round(this.limit.windowMs / 1000)} s`;
+      const by = w.user === 'nobody' ? `from ${w.address}` : `by ${w.user} (from ${w.address})`;
+      const on = w.user !== 'nobody' && w.machines.size ? ` (machines: ${[...w.machines].join(', ')})` : '';
       this.write({
         type: 'refused',
         result: 'refused',
-        user: 'nobody',
+        user: w.user,
         source: 'gateway',
-        address,
-        detail: `${w.more} more refused requests from ${address} in the last ${span}`,
+        address: w.address,
+        detail: `${w.more} more refused requests ${by} in the last ${span}${on}`,
         time: new Date(Math.min(end, this.now())).toISOString(),
       });
     }

@@ -2,7 +2,15 @@ import http from 'node:http';
 import type { AddressInfo } from 'node:net';
 import { afterEach, describe, expect, it, vi } from 'vitest';
 import { createLogger as createServerLogger } from '../server/log';
-import { createLogger, loggerFromEnv, Reachability, unreachableReason, type LogLevel } from './log';
+import type { WatchSummary } from '../src/fleet/contract';
+import {
+  createLogger,
+  escapeControls,
+  loggerFromEnv,
+  Reachability,
+  unreachableReason,
+  type LogLevel,
+} from './log';
 import type { MachineEntry } from './machines';
 import { consoleFetch, openWs, startGateway, startStub, tempDir, testFamily } from './test-util';
 
@@ -183,5 +191,109 @@ describe('machines going offline and online, as the gateway sees them', () => {
       reason: 'connection refused',
       time: expect.any(String),
     });
+  });
+});
+
+describe('log injection (controller text in log lines)', () => {
+  // An operator's upload named like this, a controller's alarm worded like this: each would
+  // forge lines (or rewrite the operator's terminal) if written as it is.
+  const JOB = 'part.gcode\nshopdeck: machine p1 online\r\u001b[2K\u001b]0;pwned\u0007';
+  const ALARM = 'flame\r\nshopdeck: warn: FORGED alarm cleared\u2028\u009b2J\u007f';
+
+  function watched(lines: string[], json: boolean, url: string) {
+    const fam = testFamily('prunt');
+    const family = {
+      ...fam,
+      gateway: {
+        ...fam.gateway,
+        sharing: {
+          keepAlive: false,
+          maxConcurrentReads: 2,
+          watch: {
+            everyMs: 40,
+            poll: {
+              path: '/status',
+              read: (_status: number, body: string) => JSON.parse(body) as WatchSummary,
+            },
+          },
+        },
+      },
+    };
+    const t = tempDir();
+    cleanups.push(t.cleanup);
+    return startGateway({
+      machines: {
+        file: null,
+        machines: [
+          {
+            id: 'p1',
+            name: 'P',
+            kind: 'prunt',
+            simulated: false,
+            url: new URL(url),
+            wsUrl: null,
+            secrets: {},
+          },
+        ],
+      },
+      families: { prunt: family },
+      dataDir: t.dir,
+      env: {},
+      watch: true,
+      log: createLogger({ json, write: (l) => lines.push(l) }),
+    });
+  }
+
+  for (const json of [false, true]) {
+    it(`a job name and an alarm with \\n, \\r and escape sequences make exactly one escaped line each (${json ? 'JSON' : 'text'})`, async () => {
+      const s = await startStub();
+      cleanups.push(s.close);
+      s.respond = (_req, res) => {
+        res.writeHead(200, { 'Content-Type': 'application/json' });
+        res.end(JSON.stringify({ state: 'running', job: JOB, alarm: ALARM }));
+      };
+      const lines: string[] = [];
+      const gw = await watched(lines, json, s.url);
+      cleanups.push(gw.close);
+      const end = Date.now() + 8000;
+      while (!lines.some((l) => l.includes('alarm')) && Date.now() < end)
+        await new Promise((r) => setTimeout(r, 20));
+      gw.gw.close();
+      // Every write is one line: no line break, no terminal control of any kind.
+      // eslint-disable-next-line no-control-regex
+      for (const l of lines) expect(l).not.toMatch(/[\u0000-\u001f\u007f-\u009f\u2028\u2029]/);
+      const started = lines.filter((l) => l.includes('job started'));
+      const alarm = lines.filter((l) => l.includes('FORGED'));
+      expect(started).toHaveLength(1);
+      expect(alarm).toHaveLength(1);
+      // Nothing the controller wrote starts a line of its own.
+      expect(lines.filter((l) => /^shopdeck: machine p1 online|^shopdeck: warn: FORGED/.test(l))).toEqual([]);
+      if (json) {
+        // The JSON is valid and gives the text back exactly.
+        expect((JSON.parse(started[0] ?? '') as { msg: string }).msg).toBe(
+          `p1: job started (started: ${JOB})`,
+        );
+        expect((JSON.parse(alarm[0] ?? '') as { msg: string }).msg).toBe(`p1: alarm (${ALARM})`);
+      } else {
+        expect(started[0]).toBe(
+          'shopdeck: p1: job started (started: part.gcode\\nshopdeck: machine p1 online\\r\\u001b[2K\\u001b]0;pwned\\u0007) (machine=p1 event="job started")',
+        );
+        expect(alarm[0]).toContain('flame\\r\\nshopdeck: warn: FORGED alarm cleared\\u2028\\u009b2J\\u007f');
+      }
+    });
+  }
+
+  it('escapes field values and the start banner too, in both loggers', () => {
+    for (const make of [createLogger, createServerLogger]) {
+      const s = sink(false);
+      const l = make(s.opts);
+      l.error('upload failed', { file: 'a\u001b[31mb', user: 'x\ny' });
+      createServerLogger(s.opts).banner('listening', 'Shopdeck\n  machines: 2 from m\u001b[2J.json', {});
+      expect(s.lines.map((x) => x.line)).toEqual([
+        'shopdeck: error: upload failed (file=a\\u001b[31mb user="x\\ny")',
+        'Shopdeck\n  machines: 2 from m\\u001b[2J.json',
+      ]);
+    }
+    expect(escapeControls('\t\u0000')).toBe('\\t\\u0000');
   });
 });

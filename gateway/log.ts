@@ -1,10 +1,15 @@
 /**
- * The gateway's log: plain lines for a person at a terminal, or one JSON object a line
- * (`SHOPDECK_LOG=json`) for journald, Docker and log shippers: `{ time, level, msg, …fields }`.
+ * The console's one log (the gateway's and the server's: `server/log.ts` re-exports it): plain
+ * lines for a person at a terminal, or one JSON object a line (`SHOPDECK_LOG=json`) for journald,
+ * Docker and log shippers: `{ time, level, msg, …fields }`. Text lines start `shopdeck:` (info) or
+ * `shopdeck: <level>:`. The server hands its logger to the gateway (`GatewayOptions.log`); the
+ * gateway's `Logger` is the part of it the gateway uses.
  *
- * The same format as the server's own log (server/log.ts): the same keys, the same text prefix
- * (`shopdeck:` / `shopdeck: warn:`), so one log reads as one. The server may hand its logger to the
- * gateway (`GatewayOptions.log`); the gateway's `Logger` is the part of it the gateway uses.
+ * Every value comes escaped: job names, alarm words, file names and user names come from
+ * controllers and people, and a newline or a terminal escape in one must not forge a line or
+ * rewrite the operator's terminal. Control characters (C0, DEL, C1) and the Unicode line and
+ * paragraph separators are written as `\n`, `\r`, `\t` or `\u001b`-style escapes, in the
+ * message and in every field, in text and in JSON: one call is always exactly one line.
  */
 
 export type LogLevel = 'info' | 'warn' | 'error';
@@ -18,6 +23,15 @@ export interface Logger {
   error(msg: string, fields?: LogFields): void;
 }
 
+/** The server's logger: the gateway's, and the start banner. */
+export interface ServerLogger extends Logger {
+  /**
+   * A message for people (the start banner): in text mode `text` is printed line by line as it
+   * is (escaped, its own newlines kept), in JSON mode one entry with `msg` and `fields`.
+   */
+  banner(msg: string, text: string, fields?: LogFields): void;
+}
+
 export interface LoggerOptions {
   json?: boolean;
   /** Where lines go (default: info to stdout, warnings and errors to stderr). */
@@ -29,13 +43,28 @@ function defaultWrite(line: string, level: LogLevel): void {
   (level === 'info' ? process.stdout : process.stderr).write(line + '\n');
 }
 
+// eslint-disable-next-line no-control-regex
+const CONTROL = /[\u0000-\u001f\u007f-\u009f\u2028\u2029]/g;
+const SHORT: Readonly<Record<string, string>> = { '\n': '\\n', '\r': '\\r', '\t': '\\t' };
+
+/** Control characters (and U+2028/U+2029) as visible escapes: `\n`, `\r`, `\t`, `\u001b`. */
+export function escapeControls(text: string): string {
+  return text.replace(CONTROL, (c) => SHORT[c] ?? `\\u${c.charCodeAt(0).toString(16).padStart(4, '0')}`);
+}
+
+/** JSON.stringify escapes C0 controls itself; DEL, C1 and the separators are escaped here too. */
+const JSON_LEFT = /[\u007f-\u009f\u2028\u2029]/g;
+function jsonLine(v: unknown): string {
+  return JSON.stringify(v).replace(JSON_LEFT, (c) => `\\u${c.charCodeAt(0).toString(16).padStart(4, '0')}`);
+}
+
 function textValue(v: unknown): string {
   if (typeof v === 'string') return /[\s"=]/.test(v) || v === '' ? JSON.stringify(v) : v;
   if (v instanceof Error) return JSON.stringify(v.message);
   return JSON.stringify(v) ?? String(v);
 }
 
-export function createLogger(opts: LoggerOptions = {}): Logger {
+export function createLogger(opts: LoggerOptions = {}): ServerLogger {
   const json = opts.json ?? false;
   const write = opts.write ?? defaultWrite;
   const now = opts.now ?? (() => new Date());
@@ -46,26 +75,30 @@ export function createLogger(opts: LoggerOptions = {}): Logger {
         if (k in entry || v === undefined) continue;
         entry[k] = v instanceof Error ? v.message : v;
       }
-      write(JSON.stringify(entry), level);
+      write(jsonLine(entry), level);
       return;
     }
     const extra = Object.entries(fields)
       .filter(([, v]) => v !== undefined)
-      .map(([k, v]) => `${k}=${textValue(v)}`)
+      .map(([k, v]) => `${escapeControls(k)}=${escapeControls(textValue(v))}`)
       .join(' ');
     const prefix = level === 'info' ? 'shopdeck:' : `shopdeck: ${level}:`;
-    write(`${prefix} ${msg}${extra ? ` (${extra})` : ''}`, level);
+    write(`${prefix} ${escapeControls(msg)}${extra ? ` (${extra})` : ''}`, level);
   };
   return {
     json,
     info: (msg, fields) => emit('info', msg, fields),
     warn: (msg, fields) => emit('warn', msg, fields),
     error: (msg, fields) => emit('error', msg, fields),
+    banner(msg, text, fields) {
+      if (json) emit('info', msg, fields);
+      else write(text.split('\n').map(escapeControls).join('\n'), 'info');
+    },
   };
 }
 
 /** The logger the environment asks for: JSON with `SHOPDECK_LOG=json`, plain text otherwise. */
-export function loggerFromEnv(env: NodeJS.ProcessEnv = process.env): Logger {
+export function loggerFromEnv(env: NodeJS.ProcessEnv = process.env): ServerLogger {
   return createLogger({ json: (env.SHOPDECK_LOG ?? '').toLowerCase() === 'json' });
 }
 

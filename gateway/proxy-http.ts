@@ -259,15 +259,18 @@ export function createHttpProxy(ctx: GatewayContext) {
     }
     const w = who(req, isCommand);
     const auditPath = scrub(auditTarget(t));
-    const commandId =
+    // The command is what the gateway classified (`decision.id`); the page's own name for it
+    // (`X-Shopdeck-Command`) is kept as a label only: a forged one must not name another command.
+    const clientCommand =
       typeof req.headers['x-shopdeck-command'] === 'string'
-        ? req.headers['x-shopdeck-command'].slice(0, 100)
+        ? scrub(req.headers['x-shopdeck-command'].slice(0, 100))
         : undefined;
     const base = {
       machine: m.id,
       method,
       path: auditPath,
-      commandId,
+      commandId: decision.id,
+      clientCommand,
       label: decision.label,
       address,
       source: 'gateway' as const,
@@ -289,21 +292,22 @@ export function createHttpProxy(ctx: GatewayContext) {
       sendJson(res, v.status, v.body);
       return;
     }
-    let audited = false;
+    // A command's entry is committed before it is forwarded (a crash after this point leaves it
+    // "pending", never missing); one that cannot be audited is not sent.
+    const audit = isCommand
+      ? ctx.beginCommand({ ...base, user: v.principal.name, onBehalfOf: v.principal.onBehalfOf })
+      : null;
+    if (isCommand && !audit) {
+      req.resume();
+      gatewayError(
+        res,
+        503,
+        `${decision.label}: not sent, the audit log cannot be written (see the server log)`,
+      );
+      return;
+    }
     /** A command's outcome, audited once (the first word on it counts: a deadline, a cut answer…). */
-    const done: Done = (r) => {
-      if (!isCommand || audited) return;
-      audited = true;
-      const ok = r.status !== undefined && r.status < 400 && r.error === undefined;
-      record({
-        ...base,
-        type: 'command',
-        result: ok ? 'ok' : 'error',
-        user: v.principal.name,
-        onBehalfOf: v.principal.onBehalfOf,
-        ...r,
-      });
-    };
+    const done: Done = (r) => audit?.done(r);
 
     let watch: CommandWatch | null = null;
     if (isCommand) {

@@ -108,17 +108,23 @@ export function createWsProxy(ctx: GatewayContext) {
       }
       return rejectUpgrade(socket, v.status, v.body);
     }
-    const audited = (r: { status?: number; error?: string }): void => {
-      if (decision.command) {
-        record({
+    // A socket the family classifies as a command is audited before it is opened (committed);
+    // one that cannot be audited is not opened.
+    const audit = decision.command
+      ? ctx.beginCommand({
           ...base,
-          type: 'command',
-          result: r.error ? 'error' : 'ok',
+          commandId: decision.id,
           user: v.principal.name,
           onBehalfOf: v.principal.onBehalfOf,
-          ...r,
-        });
-      }
+        })
+      : null;
+    if (decision.command && !audit)
+      return rejectUpgrade(socket, 503, {
+        error: `${decision.label}: not opened, the audit log cannot be written (see the server log)`,
+        gateway: true,
+      });
+    const audited = (r: { status?: number; error?: string }): void => {
+      audit?.done(r.error ? r : { status: r.status ?? 101 });
     };
     const fam = opts.families[m.kind];
     const offered = String(req.headers['sec-websocket-protocol'] ?? '')
@@ -128,7 +134,10 @@ export function createWsProxy(ctx: GatewayContext) {
     // Held controller session (held-session.ts): opened if needed; the browser's key is dropped
     // and the gateway's added to the upstream URL; the socket keeps the session alive.
     const held = await holdSocket(ctx, m);
-    if (held && 'status' in held) return rejectUpgrade(socket, held.status, held.body);
+    if (held && 'status' in held) {
+      audited({ error: String(held.body.error ?? `answered ${held.status}`) });
+      return rejectUpgrade(socket, held.status, held.body);
+    }
 
     // A shared stream (streams.ts): one controller socket per machine, every viewer joins it.
     const shared = fam?.gateway?.sharing?.streams?.find((d) => d.matches(t.path));
@@ -147,7 +156,10 @@ export function createWsProxy(ctx: GatewayContext) {
         perMessageDeflate: false,
         maxPayload: DEFAULT_BRIDGE_LIMITS.maxClientFrame,
       });
-      if (socket.destroyed) return;
+      if (socket.destroyed) {
+        audited({ error: 'the browser went away' });
+        return;
+      }
       wss.handleUpgrade(req, socket, head, (client) => {
         audited({ status: 101 });
         register(client, m, w, decision, (code, reason) => client.close(code, reason));
@@ -159,7 +171,10 @@ export function createWsProxy(ctx: GatewayContext) {
 
     if (m.simulated) {
       const sim = simulatorFor(m);
-      if (!sim) return rejectUpgrade(socket, 503, { error: `no simulator for ${m.kind}` });
+      if (!sim) {
+        audited({ error: `no simulator for ${m.kind}` });
+        return rejectUpgrade(socket, 503, { error: `no simulator for ${m.kind}` });
+      }
       const wss = new WebSocketServer({
         noServer: true,
         clientTracking: false,
@@ -193,6 +208,7 @@ export function createWsProxy(ctx: GatewayContext) {
       handleProtocols: () => upstream.protocol || false,
     });
     if (socket.destroyed) {
+      audited({ error: 'the browser went away' });
       upstream.close(1001, 'client went away');
       return;
     }

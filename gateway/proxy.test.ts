@@ -148,16 +148,17 @@ describe('proxy /machines/<id>/…', () => {
       headers: { 'X-Shopdeck-Command': 'test.save' },
     });
     const a = auditOf(gw);
-    expect(a.map((e) => [e.commandId, e.path, e.status, e.result])).toEqual([
-      ['test.pause', '/job?action=pause', 200, 'ok'],
-      ['test.save', '/settings', 409, 'error'],
+    // commandId: what the gateway classified; clientCommand: the page's own name, a label only.
+    expect(a.map((e) => [e.commandId, e.clientCommand, e.path, e.status, e.result])).toEqual([
+      ['test.pause', 'test.pause', '/job?action=pause', 200, 'ok'],
+      [undefined, 'test.save', '/settings', 409, 'error'],
     ]);
     const api = (await (await consoleFetch(`${gw.url}/api/audit?limit=1`)).json()) as {
       entries: AuditEntry[];
       total: number;
     };
     expect(api.total).toBe(2);
-    expect(api.entries[0]?.commandId).toBe('test.save');
+    expect(api.entries[0]?.clientCommand).toBe('test.save');
   });
 
   it('answers 504 with JSON when the controller does not answer in time, and audits the error', async () => {

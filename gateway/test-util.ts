@@ -321,11 +321,13 @@ export const testAccess: AccessPolicy = (req) => {
   if (req.method === 'GET' && req.path === '/status') return read();
   if (req.method === 'GET' && req.path === '/job') {
     const a = req.query.get('action');
-    if (a === 'pause' || a === 'stop') return operator(`${a} the job`);
+    if (a === 'pause' || a === 'stop') return operator(`${a} the job`, `test.${a}`);
     return supervisor(`job action ${a ?? ''}`);
   }
   if (req.method === 'POST' && req.path === '/code') {
-    return /^\s*M25\s*$/.test(req.body ?? '') ? operator('pause (M25)') : supervisor('send G-code');
+    return /^\s*M25\s*$/.test(req.body ?? '')
+      ? operator('pause (M25)', 'test.pause')
+      : supervisor('send G-code');
   }
   if (req.method === 'POST' && req.path === '/settings') return supervisor('change settings');
   if (req.method === 'GET' || req.method === 'HEAD') return read();

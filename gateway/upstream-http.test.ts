@@ -440,7 +440,7 @@ describe('commands', () => {
       'GET /job?action=pause ',
       'GET /job?action=pause ',
     ]);
-    expect(gw.gw.audit.all().map((e) => e.commandId)).toEqual(['c1', 'c2', 'c3', 'c4']);
+    expect(gw.gw.audit.all().map((e) => e.clientCommand)).toEqual(['c1', 'c2', 'c3', 'c4']);
     expect(gw.stats()).toMatchObject({ upstreamRequests: 4, commands: 4, sharedAnswers: 0 });
     // Nor kept: the same command once more reaches the controller.
     await gw.get('/job?action=pause', { headers: { 'X-Shopdeck-Command': 'c5' } });

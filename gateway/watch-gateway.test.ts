@@ -1,4 +1,3 @@
-import { existsSync, readFileSync } from 'node:fs';
 import path from 'node:path';
 import { afterEach, describe, expect, it } from 'vitest';
 import { xtoolFamily } from '../src/controllers/xtool/family';
@@ -57,12 +56,7 @@ describe('the gateway’s watch, with no viewer', () => {
     await until('the watch holds the laser’s socket', () => gw.gw.streamStats('x1').open === 1);
     const auditLines = async (): Promise<Array<{ type: string; label?: string; detail?: string }>> => {
       await gw.gw.audit.flush();
-      const file = path.join(t.dir, 'audit.jsonl');
-      if (!existsSync(file)) return [];
-      return readFileSync(file, 'utf8')
-        .split('\n')
-        .filter(Boolean)
-        .map((l) => JSON.parse(l) as { type: string; label?: string; detail?: string });
+      return gw.gw.audit.all();
     };
     const control = (id: string): SimControl => {
       const s: Simulator | null = sim;

@@ -6,6 +6,7 @@ import https from 'node:https';
 import type { TLSSocket } from 'node:tls';
 import os from 'node:os';
 import path from 'node:path';
+import Database from 'better-sqlite3';
 import { pathToFileURL } from 'node:url';
 import { brotliDecompressSync, gunzipSync } from 'node:zlib';
 import bcrypt from 'bcryptjs';
@@ -513,8 +514,10 @@ describe('HTTPS', () => {
 
     s.child.kill('SIGTERM');
     expect((await s.exited).code).toBe(0);
-    const audit = readFileSync(path.join(dataDir, 'audit.jsonl'), 'utf8');
-    expect(audit).toContain('"type":"login"');
+    const db = new Database(path.join(dataDir, 'history.sqlite'), { readonly: true });
+    const audit = JSON.stringify(db.prepare('SELECT entry FROM audit').all());
+    db.close();
+    expect(audit).toContain('\\"type\\":\\"login\\"');
 
     // Started again: the same certificate (tablets keep trusting it).
     const again = await startServer({ dataDir, env: { SHOPDECK_HTTPS: '1' } });

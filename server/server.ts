@@ -667,7 +667,7 @@ export function createShopdeckServer(opts: ShopdeckServerOptions): ShopdeckServe
     // 3. The gateway: held controller sessions, simulators, upstream sockets, pending audit summaries.
     gw.close();
     try {
-      // Everything queued is written and fsynced (audit.ts writes asynchronously).
+      // The audit database is closed (every entry was committed when it was written); alarms written.
       await Promise.race([
         Promise.all([gw.audit.close(), gw.alarms.close()]),
         delay(Math.max(0, deadline - 500 - Date.now())),

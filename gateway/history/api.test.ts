@@ -3,7 +3,16 @@ import path from 'node:path';
 import { afterEach, describe, expect, it } from 'vitest';
 import type { WatchSummary } from '../../src/fleet/contract';
 import type { MachineEntry } from '../machines';
-import { consoleFetch, login, startGateway, tempDir, testFamily, user, writeJson } from '../test-util';
+import {
+  consoleFetch,
+  login,
+  startGateway,
+  tempDir,
+  testAccess,
+  testFamily,
+  user,
+  writeJson,
+} from '../test-util';
 import { S } from './summary.test-util';
 
 /** `/api/history/*` through the real gateway: who sees what, CSV safety, settings, a missing store. */
@@ -38,7 +47,16 @@ async function setup(o: { brokenFile?: boolean } = {}) {
   const machines = [entry('a1', 'Laser one'), entry('a2', 'Laser two')];
   const gw = await startGateway({
     machines: { file: null, machines },
-    families: { xtool: testFamily('xtool') },
+    // The test family's job commands, named as the xTool family names them (its access rule's id).
+    families: {
+      xtool: {
+        ...testFamily('xtool'),
+        access: (r) => {
+          const d = testAccess(r);
+          return d.id ? { ...d, id: d.id.replace(/^test\./, 'xtool.') } : d;
+        },
+      },
+    },
     dataDir: t.dir,
     usersFile,
     env: {},
@@ -213,7 +231,7 @@ describe('/api/history: answers', () => {
     expect(ok.status).toBe(200);
     expect(await ok.json()).toMatchObject({ shifts, retention: { jobsDays: 30, statesDays: 7 } });
     const info = await json<Record<string, unknown>>(otto, '/api/history/info');
-    expect(info).toMatchObject({ shifts, retention: { jobsDays: 30, statesDays: 7 }, schemaVersion: 2 });
+    expect(info).toMatchObject({ shifts, retention: { jobsDays: 30, statesDays: 7 }, schemaVersion: 3 });
     expect(info['sizeBytes']).toEqual(expect.any(Number));
     expect((await get(sam, '/api/history/shift-report?shift=Early')).status).toBe(404);
     expect((await get(sam, '/api/history/shift-report?shift=Day')).status).toBe(200);
@@ -222,7 +240,7 @@ describe('/api/history: answers', () => {
     // Kept across a restart: settings.json.
     expect(JSON.parse(readFileSync(path.join(dir, 'settings.json'), 'utf8'))).toMatchObject({ shifts });
     await gw.gw.audit.flush();
-    const audit = readFileSync(path.join(dir, 'audit.jsonl'), 'utf8');
+    const audit = JSON.stringify(gw.gw.audit.all());
     expect(audit).toMatch(
       /"type":"settings".*shifts: Day 07:00–19:00, Night 19:00–07:00; history kept: jobs 30 days/,
     );

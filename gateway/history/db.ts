@@ -87,6 +87,36 @@ export const MIGRATIONS: readonly Migration[] = [
       CREATE INDEX touchcut_days_day ON touchcut_days (day);
     `,
   },
+  {
+    // The audit log (gateway/audit.ts): each entry as JSON, with the columns it is filtered by.
+    // `kind`: 'record' (commands, logins, changes; kept long) or 'refusal' (kept short, bounded).
+    name: 'audit log',
+    sql: `
+      CREATE TABLE audit (
+        id INTEGER PRIMARY KEY,
+        at INTEGER NOT NULL,
+        kind TEXT NOT NULL CHECK (kind IN ('record', 'refusal')),
+        type TEXT NOT NULL,
+        result TEXT NOT NULL,
+        user TEXT NOT NULL,
+        on_behalf_of TEXT,
+        machine TEXT,
+        entry TEXT NOT NULL CHECK (json_valid(entry))
+      );
+      CREATE INDEX audit_at ON audit (at);
+      CREATE INDEX audit_machine_at ON audit (machine, at);
+      CREATE INDEX audit_user_at ON audit (user, at);
+      CREATE INDEX audit_on_behalf_of_at ON audit (on_behalf_of, at);
+      CREATE INDEX audit_kind_at ON audit (kind, at);
+
+      CREATE TABLE audit_imports (
+        file TEXT NOT NULL,
+        size INTEGER NOT NULL,
+        at INTEGER NOT NULL,
+        PRIMARY KEY (file, size)
+      );
+    `,
+  },
 ];
 
 export class NewerSchemaError extends Error {}

@@ -26,13 +26,24 @@ export interface AccessDecision {
   command: boolean;
   /** What it does, in words, for refusals and the audit log ("stop the job"). */
   label: string;
+  /**
+   * Which console command this request is, as the family classifies it ("xtool.pause"): the
+   * audit's `commandId`, by which the job history names who started, paused, resumed and stopped
+   * a job. Derived from the request itself, never from what the page says it sent.
+   */
+  id?: string;
 }
 
 export type AccessPolicy = (req: AccessRequest) => AccessDecision;
 
 /** Helpers for declaring policies. */
 export const read = (label = 'read status'): AccessDecision => ({ role: 'viewer', command: false, label });
-export const operator = (label: string): AccessDecision => ({ role: 'operator', command: true, label });
+export const operator = (label: string, id?: string): AccessDecision => ({
+  role: 'operator',
+  command: true,
+  label,
+  ...(id ? { id } : {}),
+});
 export const supervisor = (label: string): AccessDecision => ({ role: 'supervisor', command: true, label });
 
 /**

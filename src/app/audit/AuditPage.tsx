@@ -32,6 +32,8 @@ const EntrySchema = z.looseObject({
   method: z.optional(z.string()),
   path: z.optional(z.string()),
   commandId: z.optional(z.string()),
+  /** The page's own name for a command (X-Shopdeck-Command): a label, not what the gateway classified. */
+  clientCommand: z.optional(z.string()),
   label: z.optional(z.string()),
   status: z.optional(z.number()),
   detail: z.optional(z.string()),
@@ -69,6 +71,7 @@ const RESULT_TONE: Record<string, Tone> = { ok: 'ok', error: 'bad', refused: 'wa
 function what(e: AuditRow): string {
   const parts = [e.label ?? TYPE_WORDS[e.type] ?? e.type];
   if (e.commandId) parts.push(`(${e.commandId})`);
+  if (e.clientCommand && e.clientCommand !== e.commandId) parts.push(`(page: ${e.clientCommand})`);
   if (
     e.type === 'role-change' ||
     e.type === 'user-added' ||

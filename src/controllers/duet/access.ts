@@ -569,6 +569,19 @@ export function classifyCode(body: string): AccessDecision {
     const why = notOperator(cmd, t.commands[k - 1]);
     if (why !== null) return supervisor(`send G-code ${why}`);
   }
-  const names = [...new Set(t.commands.map((c) => c.word))].join(', ');
-  return operator(`send ${names}`);
+  const words = new Set(t.commands.map((c) => c.word));
+  // Which console command this body is (the audit's commandId, the history's attribution): the
+  // strongest job word in it, whatever the page says it sent.
+  const job = JOB_WORDS.find(([w]) => words.has(w));
+  return operator(`send ${[...words].join(', ')}`, job?.[1]);
 }
+
+/** Job words by strength: a body with M112 is an emergency stop, whatever else it holds. */
+const JOB_WORDS: ReadonlyArray<readonly [string, string]> = [
+  ['M112', 'duet.estop'],
+  ['M0', 'duet.cancel'],
+  ['M32', 'duet.start'],
+  ['M37', 'duet.simulate'],
+  ['M25', 'duet.pause'],
+  ['M24', 'duet.resume'],
+];

@@ -413,6 +413,23 @@ function jobDecision(body: string | undefined, contentType: string | undefined):
 /** The most a `POST /job` body may be for the gateway to read it (a job of 8 MiB, multipart's headers). */
 export const MAX_JOB_UPLOAD = 8 * 1024 * 1024 + 64 * 1024;
 
+/** `{"opstate": "pause"}` / `{"state": "run"}`: which console command a control body is (the audit's commandId). */
+function controlId(body: string | undefined, key: 'opstate' | 'state'): string | undefined {
+  let v: unknown;
+  try {
+    v = body ? (JSON.parse(body) as unknown) : undefined;
+  } catch {
+    return undefined;
+  }
+  if (typeof v !== 'object' || v === null || Array.isArray(v) || repeatsKeys(body ?? '')) return undefined;
+  const what = (v as Record<string, unknown>)[key];
+  if (what === 'pause') return 'g2core.feedhold';
+  if (what === 'kill') return 'g2core.kill';
+  // A job's run starts it (a held job's resume reads the same: the board knows which it is).
+  if (what === 'run') return key === 'state' ? 'g2core.run-job' : 'g2core.resume';
+  return undefined;
+}
+
 export const g2coreAccess: AccessPolicy = (req) => {
   const m = req.method.toUpperCase();
   if (req.websocket) return supervisor('open a WebSocket (g2core has none: the server would see a GET)');
@@ -428,9 +445,10 @@ export const g2coreAccess: AccessPolicy = (req) => {
   }
   if (m === 'POST' && top === 'operation' && n === 1) return operationDecision(req.body);
   if (m === 'PUT' && top === 'operation' && n === 2 && id)
-    return operator('pause, resume or kill an operation');
+    return operator('pause, resume or kill an operation', controlId(req.body, 'opstate'));
   if (m === 'POST' && top === 'job' && n === 1) return jobDecision(req.body, req.contentType);
-  if (m === 'PUT' && top === 'job' && n === 2 && id) return operator('start, pause, kill or reorder a job');
+  if (m === 'PUT' && top === 'job' && n === 2 && id)
+    return operator('start, pause, kill or reorder a job', controlId(req.body, 'state'));
   if (m === 'DELETE' && top === 'job' && n === 2 && id) return supervisor('delete a job');
   // A serial board's hard reset (^X), served by the gateway's bridge (gateway/g2core-serial/).
   if (m === 'POST' && top === 'board' && n === 2 && id === 'reset')
@@ -440,15 +458,21 @@ export const g2coreAccess: AccessPolicy = (req) => {
 
 /**
  * The gateway reads the body of: POST /operation (jog/home or console), POST /job (an operator's
- * job holds plain G-code only; up to `MAX_JOB_UPLOAD`, see `g2coreAccessBodyLimit`), a PUT of an override (a
- * number, or something more), and every GET ('viewer': a GET with a body is not a read).
+ * job holds plain G-code only; up to `MAX_JOB_UPLOAD`, see `g2coreAccessBodyLimit`), a PUT of an
+ * override (a number, or something more), a PUT controlling an operation or a job (which command it
+ * is: the audit's commandId), and every GET ('viewer': a GET with a body is not a read).
  */
 export const g2coreAccessNeedsBody: BodyNeeded = (method, path) => {
   const m = method.toUpperCase();
   if (m === 'GET' || m === 'HEAD') return 'viewer';
   const t = target(path);
   if (m === 'POST') return t.segs.length === 1 && (t.segs[0] === 'operation' || t.segs[0] === 'job');
-  if (m === 'PUT') return overrideKey(t) !== null;
+  // Operation and job controls: read to know which command they are (the audit's commandId).
+  if (m === 'PUT')
+    return (
+      overrideKey(t) !== null ||
+      (t.segs.length === 2 && (t.segs[0] === 'operation' || t.segs[0] === 'job') && !!t.segs[1])
+    );
   return false;
 };
 

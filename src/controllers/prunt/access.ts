@@ -27,13 +27,13 @@ export const pruntAccess: AccessPolicy = (req) => {
   if (m === 'POST') {
     switch (path) {
       case '/pause/pause':
-        return operator('pause');
+        return operator('pause', 'prunt.pause');
       case '/pause/resume':
-        return operator('resume');
+        return operator('resume', 'prunt.resume');
       case '/cancel':
-        return operator('cancel the running file');
+        return operator('cancel the running file', 'prunt.cancel');
       case '/run-file':
-        return operator('run a file');
+        return operator('run a file', 'prunt.runFile');
       case '/run-command':
         return supervisor('run a G-code command');
       case '/config/values':

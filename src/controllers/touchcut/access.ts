@@ -74,7 +74,8 @@ export const touchcutAccess: AccessPolicy = (req: AccessRequest): AccessDecision
   if (req.websocket) return supervisor('open a WebSocket (TouchCut has none: it would see a GET)');
   const resource = touchcutResource(req.path);
   if (resource !== null && (method === 'GET' || method === 'HEAD')) {
-    const label = READ_LABELS[resource];
+    // Own keys only: `constructor` or `__proto__` is not a documented read.
+    const label = Object.hasOwn(READ_LABELS, resource) ? READ_LABELS[resource] : undefined;
     if (label) return read(label);
   }
   if (resource === 'auth') {

@@ -74,8 +74,10 @@ export const xtoolAccess: AccessPolicy = (req: AccessRequest): AccessDecision =>
   if (path === '/cnc/data') {
     if (isGet) {
       const action = req.query.get('action') ?? '';
-      const label = JOB_ACTIONS[action];
-      return label ? operator(label) : supervisor(`job action "${action}" (unknown: supervisor only)`);
+      const label = Object.hasOwn(JOB_ACTIONS, action) ? JOB_ACTIONS[action] : undefined;
+      return label
+        ? operator(label, `xtool.${action}`)
+        : supervisor(`job action "${action}" (unknown: supervisor only)`);
     }
     // POST /cnc/data is the same upload as POST /upload (document).
     if (method === 'POST') return operator('upload a job file');
@@ -83,7 +85,8 @@ export const xtoolAccess: AccessPolicy = (req: AccessRequest): AccessDecision =>
 
   if (path === '/upload' && method === 'POST') return operator('upload a job file');
   if (path === '/cmd') return supervisor('send G-code');
-  if (path === '/read' && isGet) return supervisor('run a file from the SD card (fires the laser)');
+  if (path === '/read' && isGet)
+    return { ...supervisor('run a file from the SD card (fires the laser)'), id: 'xtool.run-file' };
   if (path === '/delete' && isGet) return supervisor('delete a file from the SD card');
   if (path === '/upgrade' && method === 'POST') return supervisor('upload firmware');
   if (path === '/updater' && isGet)
