@@ -114,6 +114,7 @@ async function gateway(c: Controller, streams: SharedStreamDecl[], secrets: Mach
 
 const fanout = (over: Partial<FanoutStreamDecl> = {}): FanoutStreamDecl => ({
   kind: 'fanout',
+  path: '/live',
   matches: (p) => p === '/live',
   graceMs: 150,
   classify: (f) =>
@@ -126,6 +127,7 @@ const fanout = (over: Partial<FanoutStreamDecl> = {}): FanoutStreamDecl => ({
 /** A DSF-like model stream: full model, then a patch per `OK`; PING → PONG. */
 const model: ModelStreamDecl = {
   kind: 'model',
+  path: '/machine',
   matches: (p) => p === '/machine',
   graceMs: 150,
   full: (f) => {
