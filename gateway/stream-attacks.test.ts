@@ -7,7 +7,7 @@ import { afterEach, describe, expect, it } from 'vitest';
 import type { WebSocket } from 'ws';
 import { families } from '../src/controllers/families';
 import type { MachineEntry } from './machines';
-import { gatewayFor, login, openWs, user, type Cleanups } from './test-util';
+import { gatewayFor, login, openWs, stubEntry, stubFor, user, type Cleanups } from './test-util';
 
 /**
  * Attacks on the controllers' sockets through the real gateway, on real sockets (issue 31,
@@ -190,6 +190,83 @@ describe('finding 12: a viewer cannot open controller sockets at will', () => {
     expect(gw.gw.streamStats('sim-laser')).toEqual({ joined: 3, open: 1 });
     // Nothing of the refused ones reached the controller over HTTP either (no session, no probe).
     expect(ctrl.requests).toEqual([]);
+  });
+});
+
+describe('finding 12, every family: only the declared sockets exist', () => {
+  it('the demo fleet’s simulators (open mode: every role): declared paths share one socket, every other path is refused', async () => {
+    const sim = (
+      id: string,
+      kind: MachineEntry['kind'],
+      extra: Partial<MachineEntry> = {},
+    ): MachineEntry => ({
+      ...machine(id, kind, null),
+      ...extra,
+    });
+    const gw = await gatewayFor(
+      cleanups,
+      [
+        sim('x', 'xtool'),
+        sim('p', 'prunt'),
+        sim('d', 'duet'),
+        sim('rrf', 'duet', { api: 'standalone' }),
+        sim('t', 'touchcut'),
+        sim('g', 'g2core'),
+      ],
+      { families },
+    );
+    const probes: Array<[string, string, number]> = [
+      ['x', '/', 101],
+      ['x', '/?n=1', 101],
+      ['x', '/ws', 404],
+      ['p', '/websocket/everything', 101],
+      ['p', '/websocket/everything?n=1', 101],
+      ['p', '/websocket', 404],
+      ['d', '/machine', 101],
+      ['d', '/machine?sessionKey=mine', 101],
+      ['d', '/machine/model', 404],
+      ['rrf', '/machine', 404], // a standalone board has no socket
+      ['t', '/', 404],
+      ['t', '/rest/v1/status', 404],
+      ['g', '/', 404],
+      ['g', '/status_report', 404],
+    ];
+    const sockets: WebSocket[] = [];
+    cleanups.push(() => sockets.forEach((w) => w.terminate()));
+    const got: Array<[string, string, number]> = [];
+    for (const [id, p] of probes) {
+      const r = await tryOpen(`ws://${gw.host}/machines/${id}${p}`, '');
+      if (r.ws) sockets.push(r.ws);
+      got.push([id, p, r.status]);
+    }
+    expect(got).toEqual(probes);
+    for (const id of ['x', 'p', 'd']) expect(gw.gw.streamStats(id)).toEqual({ joined: 2, open: 1 });
+    for (const id of ['rrf', 't', 'g']) expect(gw.gw.streamStats(id)).toEqual({ joined: 0, open: 0 });
+  });
+});
+
+describe('finding 12, bridged sockets: bounded per machine', () => {
+  it('a family’s bridged sockets (the tests’ family: 8 a machine): the 9th is refused before the controller, a closed one frees its place', async () => {
+    const stub = await stubFor(cleanups);
+    const gw = await gatewayFor(cleanups, [stubEntry('p1', stub.url, { wsUrl: new URL(stub.wsUrl) })]);
+    const open: WebSocket[] = [];
+    cleanups.push(() => open.forEach((w) => w.terminate()));
+    for (let i = 0; i < 8; i++) {
+      const r = await tryOpen(`ws://${gw.host}/machines/p1/live?n=${i}`, '');
+      if (r.ws) open.push(r.ws);
+    }
+    expect(open).toHaveLength(8);
+    expect((await tryOpen(`ws://${gw.host}/machines/p1/other`, '')).status).toBe(503);
+    expect(stub.wsSeen).toHaveLength(8);
+    const first = open[0]!;
+    await new Promise<void>((r) => {
+      first.once('close', () => r());
+      first.close();
+    });
+    await sleep(100);
+    const again = await tryOpen(`ws://${gw.host}/machines/p1/live`, '');
+    if (again.ws) open.push(again.ws);
+    expect(again.status).toBe(101);
   });
 });
 
