@@ -201,7 +201,12 @@ describe('registered families × roles', () => {
             ? joined + forwarded(fam, stub.seen) - (before - wsBefore)
             : forwarded(fam, stub.seen) + stub.wsSeen.length - before + shared;
           expect(stub.wsSeen.length - wsBefore, label).toBeLessThanOrEqual(1);
-          if (allowed) {
+          // A socket the family does not declare (streams) is refused before anything reaches it.
+          const undeclaredSocket =
+            p.ws && !(fam.gateway?.sharing?.streams ?? []).some((d) => d.matches(p.path));
+          if (allowed && undeclaredSocket) {
+            expect({ label, status, reached }).toEqual({ label, status: 404, reached: 0 });
+          } else if (allowed) {
             expect({ label, status, reached }).toEqual({ label, status: p.ws ? 101 : 200, reached: 1 });
           } else {
             expect({ label, status, reached }).toEqual({ label, status: 403, reached: 0 });

@@ -15,7 +15,7 @@ import { auditTarget, splitTarget } from './paths';
 import { bridgeSimSocket } from './sim-server';
 import { holdSocket, type HeldSocket } from './held-session';
 import type { SharedStreamDecl } from '../src/fleet/contract';
-import { simUpstream, StreamHub, StreamHubs, wsUpstream } from './streams';
+import { simUpstream, StreamHub, StreamHubs, streamQuery, wsUpstream } from './streams';
 import type { GatewayContext } from './context';
 import { unreachableReason } from './log';
 
@@ -38,7 +38,22 @@ export function createWsProxy(ctx: GatewayContext) {
     patternsFor,
     pins,
     reachability,
+    hintsOf,
   } = ctx;
+  /** Bridged (one-to-one) controller sockets open now, per machine (`bridgedSockets.maxPerMachine`). */
+  const bridgedOpen = new Map<string, number>();
+  /** Counts a bridged socket of `id` in; the returned release counts it out (once). */
+  const countBridged = (id: string): (() => void) => {
+    bridgedOpen.set(id, (bridgedOpen.get(id) ?? 0) + 1);
+    let done = false;
+    return () => {
+      if (done) return;
+      done = true;
+      const n = (bridgedOpen.get(id) ?? 1) - 1;
+      if (n > 0) bridgedOpen.set(id, n);
+      else bridgedOpen.delete(id);
+    };
+  };
 
   // ---------------------------------------------------------------- /machines (WebSocket)
 
@@ -108,6 +123,29 @@ export function createWsProxy(ctx: GatewayContext) {
       }
       return rejectUpgrade(socket, v.status, v.body);
     }
+    const fam = opts.families[m.kind];
+    // Only the sockets the family declares exist here (the controller has room for a few): a
+    // shared stream (one upstream per machine and declared path, whatever the viewers and query
+    // strings) or a bridged socket (bounded per machine). Anything else is refused before any
+    // connection to the controller, its session included.
+    const declaredSocket = (): { shared: SharedStreamDecl } | { bridged: true } | null => {
+      const s = hintsOf(m).sharing?.streams?.find((d) => d.matches(t.path));
+      if (s) return { shared: s };
+      return fam?.gateway?.bridgedSockets?.matches(t.path) ? { bridged: true } : null;
+    };
+    const noSocket = (): void =>
+      rejectUpgrade(socket, 404, { error: `${m.name} has no socket at ${auditPath}`, gateway: true });
+    const first = declaredSocket();
+    if (!first) return noSocket();
+    let streamQ = '';
+    if ('shared' in first) {
+      const q = streamQuery(first.shared, t.rawQuery);
+      if (q instanceof Error) return rejectUpgrade(socket, 400, { error: q.message, gateway: true });
+      streamQ = q;
+    }
+    const maxBridged = fam?.gateway?.bridgedSockets?.maxPerMachine ?? 0;
+    if ('bridged' in first && (bridgedOpen.get(m.id) ?? 0) >= maxBridged)
+      return rejectUpgrade(socket, 503, { error: `${m.name} has no free socket: try later`, gateway: true });
     // A socket the family classifies as a command is audited before it is opened (committed);
     // one that cannot be audited is not opened.
     const audit = decision.command
@@ -126,7 +164,6 @@ export function createWsProxy(ctx: GatewayContext) {
     const audited = (r: { status?: number; error?: string }): void => {
       audit?.done(r.error ? r : { status: r.status ?? 101 });
     };
-    const fam = opts.families[m.kind];
     const offered = String(req.headers['sec-websocket-protocol'] ?? '')
       .split(',')
       .map((s) => s.trim())
@@ -139,10 +176,17 @@ export function createWsProxy(ctx: GatewayContext) {
       return rejectUpgrade(socket, held.status, held.body);
     }
 
+    // The held session may have learned which API the controller speaks (a standalone Duet has no
+    // socket at all): the declaration is asked again.
+    const declared = declaredSocket();
+    if (!declared || 'shared' in declared !== 'shared' in first) {
+      audited({ error: 'no such socket' });
+      return noSocket();
+    }
+
     // A shared stream (streams.ts): one controller socket per machine, every viewer joins it.
-    const shared = fam?.gateway?.sharing?.streams?.find((d) => d.matches(t.path));
-    if (shared) {
-      const r = await joinHub(m, shared, t.path, t.rawQuery, held);
+    if ('shared' in declared) {
+      const r = await joinHub(m, declared.shared, streamQ, held);
       if ('status' in r) {
         audited({ error: r.error });
         return rejectUpgrade(socket, r.status, {
@@ -169,12 +213,18 @@ export function createWsProxy(ctx: GatewayContext) {
       return;
     }
 
+    if ((bridgedOpen.get(m.id) ?? 0) >= maxBridged) {
+      audited({ error: 'no free socket' });
+      return rejectUpgrade(socket, 503, { error: `${m.name} has no free socket: try later`, gateway: true });
+    }
     if (m.simulated) {
       const sim = simulatorFor(m);
       if (!sim) {
         audited({ error: `no simulator for ${m.kind}` });
         return rejectUpgrade(socket, 503, { error: `no simulator for ${m.kind}` });
       }
+      const release = countBridged(m.id);
+      socket.once('close', release);
       const wss = new WebSocketServer({
         noServer: true,
         clientTracking: false,
@@ -183,6 +233,7 @@ export function createWsProxy(ctx: GatewayContext) {
       });
       wss.handleUpgrade(req, socket, head, (client) => {
         audited({ status: 101 });
+        client.once('close', release);
         const unregister = register(client, m, w, decision, (code, reason) => client.close(code, reason));
         held?.track(client); // held session: the simulator's socket uses the gateway's key
         const simTarget = held
@@ -194,7 +245,10 @@ export function createWsProxy(ctx: GatewayContext) {
     }
 
     const headers = forwardRequestHeaders(req.headers);
+    const release = countBridged(m.id);
     const o = await openControllerSocket(m, t.path, t.query, t.rawQuery, headers, offered, held);
+    if (o.ok) o.upstream.once('close', release);
+    else release();
     if (!o.ok) {
       audited({ error: o.error });
       return rejectUpgrade(socket, o.status, { error: o.error, ...(o.gateway ? { gateway: true } : {}) });
@@ -372,18 +426,19 @@ export function createWsProxy(ctx: GatewayContext) {
     });
   }
 
-  /** The machine's shared hub for this stream: the open one, or a new one opened once. */
+  /**
+   * The machine's shared hub for this stream: the open one, or a new one opened once. It is named
+   * by the declared path and the declared query (`streamQuery`), never by the browser's spelling,
+   * and that is what goes upstream: one controller socket per machine and declared stream.
+   */
   async function joinHub(
     m: MachineEntry,
     decl: SharedStreamDecl,
-    path: string,
     rawQuery: string,
     held: HeldSocket | null,
   ): Promise<StreamHub | { status: number; error: string }> {
-    // The browser's own keys never choose or reach the hub: the query without them is the key.
-    const q = new URLSearchParams(rawQuery);
-    held?.apply(q, {});
-    const key = StreamHubs.key(m.id, path, q.toString());
+    const path = decl.path;
+    const key = StreamHubs.key(m.id, path, rawQuery);
     return streams.get(key, async () => {
       const patterns = patternsFor(m);
       const hubOpts = {
@@ -423,11 +478,11 @@ export function createWsProxy(ctx: GatewayContext) {
     onFrame: (frame: string) => void,
     onEnd: () => void,
   ): Promise<() => void> {
-    const decl = opts.families[m.kind]?.gateway?.sharing?.streams?.find((d) => d.matches(path));
+    const decl = hintsOf(m).sharing?.streams?.find((d) => d.matches(path));
     if (!decl) throw new Error(`no shared stream at ${path}`);
     const held = await holdSocket(ctx, m);
     if (held && 'status' in held) throw new Error(String(held.body.error));
-    const r = await joinHub(m, decl, path, '', held);
+    const r = await joinHub(m, decl, '', held);
     if ('status' in r) throw new Error(r.error);
     const release = r.hold();
     const offFrame = r.onFrame(onFrame);

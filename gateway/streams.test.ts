@@ -11,6 +11,7 @@ import type {
   SharedStreamDecl,
 } from '../src/fleet/contract';
 import type { MachineEntry } from './machines';
+import { DEFAULT_STREAM_LIMITS, StreamHub, streamQuery, type UpstreamSocket } from './streams';
 import { startGateway, tempDir, testFamily, type Running } from './test-util';
 
 /**
@@ -114,6 +115,7 @@ async function gateway(c: Controller, streams: SharedStreamDecl[], secrets: Mach
 
 const fanout = (over: Partial<FanoutStreamDecl> = {}): FanoutStreamDecl => ({
   kind: 'fanout',
+  path: '/live',
   matches: (p) => p === '/live',
   graceMs: 150,
   classify: (f) =>
@@ -126,6 +128,7 @@ const fanout = (over: Partial<FanoutStreamDecl> = {}): FanoutStreamDecl => ({
 /** A DSF-like model stream: full model, then a patch per `OK`; PING → PONG. */
 const model: ModelStreamDecl = {
   kind: 'model',
+  path: '/machine',
   matches: (p) => p === '/machine',
   graceMs: 150,
   full: (f) => {
@@ -285,6 +288,68 @@ describe('fan-out streams', () => {
     expect(await closes).toEqual([1011, 1011]);
     await openWsNoFirst(ws('/live'));
     await until('fresh upstream', () => c.opened === 2 && c.open.size === 1);
+  });
+});
+
+describe('the stream a browser names (issue 31, finding 12)', () => {
+  it('only declared query parameters, with declared values, choose the stream and reach the controller', async () => {
+    const c = await startController();
+    const { ws } = await gateway(c, [fanout({ query: { mode: ['fast', 'slow'] } })]);
+    const a = await openWsNoFirst(ws('/live?mode=fast&x=1'));
+    const b = await openWsNoFirst(ws('/live?cache=2&mode=fast'));
+    const d = await openWsNoFirst(ws('/live?mode=slow'));
+    await expect(openWsNoFirst(ws('/live?mode=other'))).rejects.toThrow('HTTP 400');
+    await expect(openWsNoFirst(ws('/live?mode=fast&mode=slow'))).rejects.toThrow('HTTP 400');
+    await until('two upstreams', () => c.open.size === 2);
+    expect([...c.urls].sort()).toEqual(['/live?mode=fast', '/live?mode=slow']);
+    void [a, b, d];
+  });
+
+  it('streamQuery drops what is not declared', () => {
+    expect(streamQuery(fanout(), 'a=1&b=2')).toBe('');
+    expect(streamQuery(fanout({ query: { m: ['x'] } }), 'z=1&m=x')).toBe('m=x');
+    expect(streamQuery(fanout({ query: { m: ['x'] } }), 'm=y')).toBeInstanceOf(Error);
+  });
+});
+
+describe('a burst of controller frames (issue 31, finding 13)', () => {
+  it('20,000 state frames in one go: 64 handled at once, the rest coalesced into the newest, handled next turn', async () => {
+    let deliver: (data: Buffer, isBinary: boolean) => void = () => undefined;
+    const up: UpstreamSocket = {
+      send: () => undefined,
+      close: () => undefined,
+      onMessage: (cb) => (deliver = cb),
+      onClose: () => undefined,
+    };
+    const hub = new StreamHub(fanout(), up);
+    cleanups.push(() => hub.close(1000, 'done'));
+    const seen: string[] = [];
+    hub.onFrame((f) => seen.push(f));
+    for (let i = 0; i < 20_000; i++) deliver(Buffer.from(`state:${i}`), false);
+    const batch = DEFAULT_STREAM_LIMITS.batchFrames;
+    expect(seen).toHaveLength(batch);
+    await new Promise((r) => setImmediate(r));
+    expect(seen).toHaveLength(batch + 1);
+    expect(seen.at(-1)).toBe('state:19999');
+    expect(hub.stats.coalesced).toBe(20_000 - batch - 1);
+  });
+
+  it('events are never coalesced: they come in order, a turn at a time', async () => {
+    let deliver: (data: Buffer, isBinary: boolean) => void = () => undefined;
+    const up: UpstreamSocket = {
+      send: () => undefined,
+      close: () => undefined,
+      onMessage: (cb) => (deliver = cb),
+      onClose: () => undefined,
+    };
+    const hub = new StreamHub(fanout(), up);
+    cleanups.push(() => hub.close(1000, 'done'));
+    const seen: string[] = [];
+    hub.onFrame((f) => seen.push(f));
+    for (let i = 0; i < 150; i++) deliver(Buffer.from(i % 3 ? `log ${i}` : `state:${i}`), false);
+    expect(seen.length).toBe(DEFAULT_STREAM_LIMITS.batchFrames);
+    await until('every frame', () => seen.length === 150);
+    expect(seen).toEqual(Array.from({ length: 150 }, (_, i) => (i % 3 ? `log ${i}` : `state:${i}`)));
   });
 });
 

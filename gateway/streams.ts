@@ -2,7 +2,6 @@ import { EventEmitter } from 'node:events';
 import { WebSocket, type RawData } from 'ws';
 import type { Simulator } from '../src/fleet/sim';
 import type {
-  FanoutStreamDecl,
   FrameClass,
   JsonRecord,
   JsonValue,
@@ -60,6 +59,24 @@ export interface StreamLimits {
   replayEvents: number;
   /** Model events (Duet messages) kept per browser between two acknowledgements. */
   pendingEvents: number;
+  /**
+   * Controller frames handled (redacted, read, given to browsers) in one turn of the event loop;
+   * the rest wait for the next turn, so one machine's burst never holds up the others.
+   */
+  batchFrames: number;
+  /** Bytes of controller frames handled in one turn (redaction costs by the byte). */
+  batchBytes: number;
+  /**
+   * Frames waiting for a turn that cannot be coalesced (events, model patches): past this, or past
+   * `maxQueuedBytes`, the controller floods faster than it can be handled and its socket is closed.
+   */
+  maxQueuedFrames: number;
+  maxQueuedBytes: number;
+  /**
+   * Seconds in a row with `maxFramesPerSecond` frames or more that cannot be coalesced (events,
+   * patches) before the controller's socket is closed as flooding (state frames are coalesced).
+   */
+  floodSeconds: number;
 }
 
 export const DEFAULT_STREAM_LIMITS: StreamLimits = {
@@ -69,6 +86,11 @@ export const DEFAULT_STREAM_LIMITS: StreamLimits = {
   maxBrowserFramesPerSecond: 60,
   replayEvents: 20,
   pendingEvents: 500,
+  batchFrames: 64,
+  batchBytes: 1024 * 1024,
+  maxQueuedFrames: 2000,
+  maxQueuedBytes: 16 * 1024 * 1024,
+  floodSeconds: 5,
 };
 
 export interface HubOptions {
@@ -90,6 +112,8 @@ export interface HubStats {
   coalesced: number;
   /** Browsers closed for being too slow. */
   slowClosed: number;
+  /** Turns a burst of controller frames was spread over (the event loop ran between them). */
+  deferred: number;
 }
 
 interface Viewer {
@@ -125,8 +149,22 @@ function text(data: Buffer): string {
   return data.toString('utf8');
 }
 
+/** A controller frame waiting for its turn, with its class (fan-out) computed once. */
+interface Inbound {
+  raw: Buffer;
+  isBinary: boolean;
+  cls: FrameClass | null;
+}
+
 export class StreamHub {
-  readonly stats: HubStats = { viewers: 0, framesIn: 0, framesOut: 0, coalesced: 0, slowClosed: 0 };
+  readonly stats: HubStats = {
+    viewers: 0,
+    framesIn: 0,
+    framesOut: 0,
+    coalesced: 0,
+    slowClosed: 0,
+    deferred: 0,
+  };
   private readonly viewers = new Set<Viewer>();
   private readonly limits: StreamLimits;
   private readonly now: () => number;
@@ -138,6 +176,9 @@ export class StreamHub {
   private lastPingAt = 0;
   private windowStart: number;
   private windowCount = 0;
+  /** Frames of this window that cannot be coalesced, and windows in a row that had too many. */
+  private windowEvents = 0;
+  private floodWindows = 0;
   private pausedUntil: ReturnType<typeof setTimeout> | null = null;
   /** Fan-out: newest `latest` frames with `replay`, and the last `replay` events. */
   private readonly replayLatest = new Map<string, { data: Buffer; isBinary: boolean }>();
@@ -152,6 +193,21 @@ export class StreamHub {
   private model: JsonRecord | null = null;
   private readonly frameListeners = new Set<(frame: string) => void>();
   private readonly endListeners = new Set<() => void>();
+  /**
+   * Controller frames not handled yet (from `head` on): a burst waits here between turns. A fan-out
+   * `latest` frame replaces the waiting one of its key when no event came between (`waitingLatest`:
+   * key → index), so a burst of state frames waits as one frame per key.
+   */
+  private inbox: Array<Inbound | undefined> = [];
+  private head = 0;
+  private readonly waitingLatest = new Map<string, number>();
+  /** Frames in the inbox that cannot be coalesced, and the inbox's bytes. */
+  private queuedFrames = 0;
+  private queuedBytes = 0;
+  /** What this turn of the event loop handled so far; reset by `turnTimer`. */
+  private turnFrames = 0;
+  private turnBytes = 0;
+  private turnTimer: ReturnType<typeof setImmediate> | null = null;
 
   constructor(
     readonly decl: SharedStreamDecl,
@@ -274,26 +330,106 @@ export class StreamHub {
 
   // ---------------------------------------------------------------- upstream → browsers
 
+  /**
+   * A controller frame: queued, coalesced with a waiting one of its key when the family says it
+   * supersedes it, and handled in turns of at most `batchFrames`/`batchBytes` (redaction, the
+   * watch, the browsers); the event loop runs between turns. ws hands over every frame of a read
+   * at once, whatever `pause()`: a burst of 20,000 costs here only its classification.
+   */
   private fromUpstream(raw: Buffer, isBinary: boolean): void {
     if (this.ended) return;
     this.lastHeard = this.now();
     this.stats.framesIn++;
     this.rateBound();
-    const data = this.opts.toClient ? this.opts.toClient(raw, isBinary) : raw;
-    if (this.frameListeners.size && !isBinary) {
+    const decl = this.decl;
+    const cls: FrameClass | null =
+      decl.kind === 'fanout' ? (isBinary ? { kind: 'event' } : decl.classify(text(raw))) : null;
+    if (cls?.kind !== 'latest' && ++this.windowEvents === this.limits.maxFramesPerSecond) {
+      if (++this.floodWindows >= this.limits.floodSeconds) return this.flooded();
+    }
+    if (cls?.kind === 'latest') {
+      const i = this.waitingLatest.get(cls.key);
+      const waiting = i === undefined ? undefined : this.inbox[i];
+      if (i !== undefined && waiting && i >= this.head) {
+        this.stats.coalesced++;
+        this.queuedBytes += raw.length - waiting.raw.length;
+        this.inbox[i] = { raw, isBinary, cls };
+      } else {
+        this.waitingLatest.set(cls.key, this.inbox.length);
+        this.queuedBytes += raw.length;
+        this.inbox.push({ raw, isBinary, cls });
+      }
+    } else {
+      // An event (or a model patch) keeps its place: state before it is not replaced by state after.
+      this.waitingLatest.clear();
+      this.queuedFrames++;
+      this.queuedBytes += raw.length;
+      this.inbox.push({ raw, isBinary, cls });
+    }
+    if (this.queuedFrames > this.limits.maxQueuedFrames || this.queuedBytes > this.limits.maxQueuedBytes)
+      return this.flooded();
+    this.drain();
+  }
+
+  /** A sustained flood: the controller's socket is closed, the viewers told (1011) and they reconnect. */
+  private flooded(): void {
+    this.opts.warn?.('the controller sends frames faster than they can be handled: its socket is closed');
+    this.upstream.close(1008, 'too many frames');
+    this.end(CLOSED_BY_CONTROLLER, 'the controller flooded its socket');
+  }
+
+  /** Handles waiting frames up to this turn's budget; the rest in the next turn. */
+  private drain(): void {
+    while (this.head < this.inbox.length && !this.ended) {
+      if (this.turnFrames >= this.limits.batchFrames || this.turnBytes >= this.limits.batchBytes) {
+        if (!this.turnTimer) this.stats.deferred++;
+        break;
+      }
+      const f = this.inbox[this.head];
+      this.inbox[this.head++] = undefined; // handled: its buffer may go
+      if (!f) continue;
+      if (f.cls?.kind !== 'latest') this.queuedFrames--;
+      this.queuedBytes -= f.raw.length;
+      this.turnFrames++;
+      this.turnBytes += f.raw.length;
+      this.handle(f);
+    }
+    if (this.head >= this.inbox.length) {
+      this.inbox = [];
+      this.head = 0;
+      this.waitingLatest.clear();
+    }
+    if ((this.turnFrames || this.head < this.inbox.length) && !this.turnTimer && !this.ended) {
+      this.turnTimer = setImmediate(() => {
+        this.turnTimer = null;
+        this.turnFrames = 0;
+        this.turnBytes = 0;
+        this.drain();
+      });
+    }
+  }
+
+  private handle(f: Inbound): void {
+    const data = this.opts.toClient ? this.opts.toClient(f.raw, f.isBinary) : f.raw;
+    if (this.frameListeners.size && !f.isBinary) {
       const t = text(data);
       for (const cb of this.frameListeners) cb(t);
     }
-    if (this.decl.kind === 'model') this.modelFrame(this.decl, data, isBinary);
-    else this.fanoutFrame(this.decl, data, isBinary);
+    if (this.ended) return;
+    if (this.decl.kind === 'model') this.modelFrame(this.decl, data, f.isBinary);
+    else this.fanoutFrame(f.cls ?? { kind: 'event' }, data, f.isBinary);
   }
 
   /** A flooding controller is paused for the rest of the second (its frames wait in TCP). */
   private rateBound(): void {
     const t = this.now();
     if (t - this.windowStart >= 1000) {
+      // A window without too many events ends the run of flooded ones.
+      if (this.windowEvents < this.limits.maxFramesPerSecond || t - this.windowStart >= 2000)
+        this.floodWindows = 0;
       this.windowStart = t;
       this.windowCount = 0;
+      this.windowEvents = 0;
     }
     if (++this.windowCount < this.limits.maxFramesPerSecond || !this.upstream.pause || this.pausedUntil)
       return;
@@ -307,8 +443,7 @@ export class StreamHub {
     );
   }
 
-  private fanoutFrame(decl: FanoutStreamDecl, data: Buffer, isBinary: boolean): void {
-    const c: FrameClass = isBinary ? { kind: 'event' } : decl.classify(text(data));
+  private fanoutFrame(c: FrameClass, data: Buffer, isBinary: boolean): void {
     const frame = { data, isBinary };
     if (c.kind === 'latest') {
       if (c.replay) this.replayLatest.set(c.key, frame);
@@ -523,6 +658,11 @@ export class StreamHub {
     this.cancelGrace();
     if (this.pingTimer) clearInterval(this.pingTimer);
     if (this.pausedUntil) clearTimeout(this.pausedUntil);
+    if (this.turnTimer) clearImmediate(this.turnTimer);
+    this.turnTimer = null;
+    this.inbox = [];
+    this.head = 0;
+    this.waitingLatest.clear();
     for (const v of [...this.viewers]) {
       if (v.timer) clearTimeout(v.timer);
       if (v.ws.readyState === WebSocket.OPEN || v.ws.readyState === WebSocket.CONNECTING)
@@ -535,6 +675,26 @@ export class StreamHub {
     for (const cb of [...this.endListeners]) cb();
     this.endListeners.clear();
   }
+}
+
+/**
+ * The query that goes upstream with a shared stream and tells its sockets apart: only the
+ * parameters the family declares (`query`), each with one of its declared values, in the declared
+ * order; whatever else a browser sends is dropped. An Error (400 for the browser): a declared
+ * parameter repeated or with a value outside its set.
+ */
+export function streamQuery(decl: SharedStreamDecl, rawQuery: string): string | Error {
+  const given = new URLSearchParams(rawQuery);
+  const out = new URLSearchParams();
+  for (const [name, values] of Object.entries(decl.query ?? {})) {
+    const v = given.getAll(name);
+    if (v.length === 0) continue;
+    if (v.length > 1) return new Error(`"${name}" given more than once`);
+    const value = v[0] ?? '';
+    if (!values.includes(value)) return new Error(`"${name}" may only be one of: ${values.join(', ')}`);
+    out.set(name, value);
+  }
+  return out.toString();
 }
 
 /** The hubs of a gateway, by machine and stream. */

@@ -366,6 +366,8 @@ export function testFamily(
     accessNeedsBody: (method, p) => method === 'POST' && p === '/code',
     gateway: {
       defaultWsPort,
+      // Its sockets are bridged one to one (the five families share theirs: streams.test.ts).
+      bridgedSockets: { matches: () => true, maxPerMachine: 8 },
       injectSecrets(req, secrets) {
         if (secrets.apiKey) req.headers['X-Api-Key'] = secrets.apiKey;
         if (secrets.password && req.path === '/login') req.query.set('password', secrets.password);

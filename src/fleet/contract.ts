@@ -81,6 +81,14 @@ export interface GatewayHints {
    */
   sharing?: SharingHints;
   /**
+   * Controller sockets bridged one to one (each browser socket its own upstream socket, frames
+   * passed both ways), for a socket that cannot be shared. None of the five families has one:
+   * every socket of theirs is a shared stream (`sharing.streams`). A WebSocket path that is
+   * neither is refused (404) before anything reaches the controller. At most `maxPerMachine`
+   * such upstream sockets are open for one machine (more: 503).
+   */
+  bridgedSockets?: { matches(path: string): boolean; maxPerMachine: number };
+  /**
    * The session hooks and sharing hints of ONE machine (the gateway asks once per machine and
    * keeps them), for a family whose controllers speak more than one API: which one is learned
    * when the session is opened (Duet: DSF or standalone `rr_*`, the held session's probe) or told
@@ -128,8 +136,21 @@ export type FrameClass =
   | { kind: 'event'; replay?: boolean };
 
 interface StreamDeclBase {
-  /** The socket's path on the controller ("/websocket/everything", "/" for xTool's :8081). */
+  /**
+   * The socket's canonical path on the controller ("/websocket/everything", "/" for xTool's
+   * :8081): what goes upstream and what names the one shared socket, whichever spelling matched.
+   */
+  path: string;
+  /** Whether a browser's (canonical) path is this socket ("/machine" in any spelling DSF takes). */
   matches(path: string): boolean;
+  /**
+   * The query parameters that choose a different stream on the controller, each with the closed
+   * set of values it may take (none: the query is not part of the stream). Only these reach the
+   * controller and tell shared sockets apart; any other parameter a browser sends is dropped, and
+   * a declared one with another value is refused (400): a browser cannot open a socket per
+   * query string.
+   */
+  query?: Readonly<Record<string, readonly string[]>>;
   /** The upstream socket stays this long after the last viewer left (unless the watch needs it). */
   graceMs: number;
 }

@@ -93,6 +93,7 @@ export function duetFromBrowser(frame: string): { ack: true } | { reply: string 
 
 export const duetModelStream: ModelStreamDecl = {
   kind: 'model',
+  path: '/machine',
   matches: (path) => routeOf(path) === '/machine',
   // DSF registers a user session per socket (sbc.dsf.userSessions): a page reload should not
   // close one and open another.

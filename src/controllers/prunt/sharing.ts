@@ -89,6 +89,7 @@ export function pruntUpstreamRate(rateMs: number): string {
 
 export const pruntStream: FanoutStreamDecl = {
   kind: 'fanout',
+  path: '/websocket/everything',
   matches: (path) => path === '/websocket/everything',
   graceMs: 10_000,
   classify: classifyPruntFrame,

@@ -97,6 +97,7 @@ export function classifyXtoolFrame(frame: string): FrameClass {
 export const xtoolStatusStream: FanoutStreamDecl = {
   kind: 'fanout',
   // The browser opens `/machines/<id>/`: the root of the laser's :8081 (declaration.ts).
+  path: '/',
   matches: (path) => path === '/',
   // A page reload or going from the fleet to a machine page keeps the ESP32's socket.
   graceMs: 10_000,
