@@ -9,7 +9,16 @@ export function sendJson(
   body: unknown,
   headers: Record<string, string> = {},
 ): void {
-  const text = JSON.stringify(body);
+  sendJsonText(res, status, JSON.stringify(body), headers);
+}
+
+/** `sendJson` of a JSON text already made (e.g. by a history read worker). */
+export function sendJsonText(
+  res: ServerResponse,
+  status: number,
+  text: string,
+  headers: Record<string, string> = {},
+): void {
   res.writeHead(status, {
     // The gateway's own refusals and failures say so: the page never reads them as the controller's.
     ...(status >= 400 ? { 'X-Shopdeck-Gateway': 'error' } : {}),

@@ -1,6 +1,6 @@
 import type { ServerResponse } from 'node:http';
 import { Worker } from 'node:worker_threads';
-import { sendJson } from '../http-util';
+import { sendJson, sendJsonText } from '../http-util';
 import type { Logger } from '../log';
 import type { FromWorker, ReadJob, ToWorker } from './read-protocol';
 
@@ -261,18 +261,6 @@ export class HistoryReads {
     }
     for (const w of this.workers.splice(0)) void w.worker.terminate();
   }
-}
-
-/** A JSON answer whose text the worker made: the headers `sendJson` writes. */
-function sendJsonText(res: ServerResponse, status: number, text: string): void {
-  res.writeHead(status, {
-    ...(status >= 400 ? { 'X-Shopdeck-Gateway': 'error' } : {}),
-    'Content-Type': 'application/json; charset=utf-8',
-    'Content-Length': Buffer.byteLength(text),
-    'Cache-Control': 'no-store',
-    'X-Content-Type-Options': 'nosniff',
-  });
-  res.end(text);
 }
 
 function tooMany(res: ServerResponse, error: string): void {
