@@ -36,6 +36,8 @@ describe('shownState: one function decides the displayed state', () => {
     expect(s).toEqual({ activity: 'alarm', words: 'Alarm · was running', tone: 'bad', was: 'running' });
     expect(shownState('idle', [alarm('info'), alarm('critical')]).words).toBe('Alarm · was idle');
     expect(shownState('alarm', [alarm('critical')]).words).toBe('Alarm');
+    expect(shownState('error', [alarm('critical')]).words).toBe('Alarm · error');
+    expect(shownState('offline', [alarm('critical')]).words).toBe('Alarm · offline');
   });
 
   it("the alarm centre's critical alarm overrides too (a machine this page does not see in alarm)", () => {

@@ -78,9 +78,11 @@ export function shownState(
   if (!openCritical && !hasOpenCritical(alarms))
     return { activity, words: ACTIVITY_WORDS[activity], tone: ACTIVITY_TONE[activity], was: null };
   if (activity === 'alarm') return { activity, words: ACTIVITY_WORDS.alarm, tone: 'bad', was: null };
+  // What the machine did before ("was running"), or what it is now when that is no activity.
+  const now = activity === 'error' || activity === 'offline' || activity === 'unknown';
   return {
     activity: 'alarm',
-    words: `${ACTIVITY_WORDS.alarm} · was ${ACTIVITY_WORDS[activity].toLowerCase()}`,
+    words: `${ACTIVITY_WORDS.alarm} · ${now ? '' : 'was '}${ACTIVITY_WORDS[activity].toLowerCase()}`,
     tone: 'bad',
     was: activity,
   };
