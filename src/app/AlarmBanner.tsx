@@ -219,8 +219,16 @@ function AckButton({ b, onError }: { b: Blocking; onError: (e: string | null) =>
 function SoundToggle() {
   const on = useAlarmSoundSetting();
   return (
-    <Button small onClick={() => setAlarmSound(!on)} data-testid="alarm-sound-toggle" aria-pressed={!on}>
-      {on ? 'Mute the alarm sound on this tablet' : 'Alarm sound is muted on this tablet — turn on'}
+    <Button
+      small
+      onClick={() => setAlarmSound(!on)}
+      data-testid="alarm-sound-toggle"
+      aria-pressed={!on}
+      aria-label={
+        on ? 'Mute the alarm sound on this tablet' : 'Alarm sound is muted on this tablet — turn on'
+      }
+    >
+      {on ? 'Mute' : 'Muted — turn on'}
     </Button>
   );
 }
@@ -273,32 +281,53 @@ export function AlarmBanner({ blocking }: { blocking: Blocking[] }) {
   );
 }
 
+/** Which critical alarms the banner shows in full (this page's machine) and which as one line. */
+export function splitForBanner(
+  critical: readonly Blocking[],
+  here: string | null,
+  kiosk: boolean,
+): { full: Blocking[]; others: Blocking[] } {
+  return {
+    // This page's machine: in full, with acknowledge (a blocking one is the modal's).
+    full: critical.filter((b) => b.machineId === here && !b.blocking),
+    // The others: one line. On a kiosk every other machine's, blocking too (the modal is for the
+    // kiosk's own machine: an operator at the laser acknowledges nothing he cannot see).
+    others: critical.filter((b) => b.machineId !== here && (kiosk || !b.blocking)),
+  };
+}
+
+/** The one line of the other machines' critical alarms ("3 critical — Router, Plasma, Printer 3"). */
+export function othersLine(others: readonly Blocking[], kiosk: boolean): string {
+  const n = others.length;
+  if (kiosk) return `${n} other ${n === 1 ? 'alarm' : 'alarms'} in the shop`;
+  if (n === 1) return `Critical — ${others[0]!.machineName}: ${others[0]!.message}`;
+  const names = [...new Set(others.map((b) => b.machineName))];
+  return `${n} critical — ${names.join(', ')}`;
+}
+
 /**
- * The banner of the other critical alarms, at the top of every page. `kiosk`: no way out of the
- * page (machine names as words, no link to the alarm centre).
+ * The critical alarms that do not block, at the top of every page: the machine of this page
+ * (`hideOn`) in full with its acknowledgement, every other as one compact line that leads to the
+ * alarm centre (where they are acknowledged, as on each machine's page). `kiosk`: no way out of
+ * the page and nothing to acknowledge of another machine, only their number.
  */
 export function CriticalBanner({ hideOn, kiosk = false }: { hideOn?: string | null; kiosk?: boolean }) {
   const canAck = useCan('operator');
   const critical = useCriticalAlarms();
   const [error, setError] = useState<string | null>(null);
-  const shown = critical.filter((b) => !b.blocking);
-  if (shown.length === 0) return null;
+  const { full, others } = splitForBanner(critical, hideOn ?? null, kiosk);
+  if (full.length === 0 && others.length === 0) return null;
   return (
     <div className="critical-banner" role="alert" data-testid="critical-banner">
-      {shown.map((b) => (
+      {full.map((b) => (
         <div
           key={`${b.machineId}:${b.key}`}
           className="critical-item"
           data-testid={`critical-${b.machineId}`}
         >
           <span className="critical-what">
-            <span aria-hidden="true">⚠</span>{' '}
-            {hideOn === b.machineId || kiosk ? (
-              <strong>{b.machineName}</strong>
-            ) : (
-              <Link to={`/m/${encodeURIComponent(b.machineId)}`}>{b.machineName}</Link>
-            )}
-            : {b.message} <span className="small">since {formatTime(b.since)}</span>
+            <span aria-hidden="true">⚠</span> <strong>{b.machineName}</strong>: {b.message}{' '}
+            <span className="small">since {formatTime(b.since)}</span>
           </span>
           {canAck ? (
             <AckButton b={b} onError={setError} />
@@ -308,10 +337,25 @@ export function CriticalBanner({ hideOn, kiosk = false }: { hideOn?: string | nu
         </div>
       ))}
       {error && <p className="alarm-error">{error}</p>}
-      <div className="critical-foot">
-        {!kiosk && <Link to="/alarms">All alarms</Link>}
-        <SoundToggle />
-      </div>
+      {(others.length > 0 || full.length > 0) && (
+        <div className="critical-line" data-testid="critical-others">
+          {others.length > 0 && (
+            <span
+              className="critical-summary"
+              data-testid="critical-summary"
+              title={othersLine(others, kiosk)}
+            >
+              <span aria-hidden="true">⚠</span> {othersLine(others, kiosk)}
+            </span>
+          )}
+          {others.length > 0 && !kiosk && (
+            <Link to="/alarms" className="critical-view">
+              View
+            </Link>
+          )}
+          <SoundToggle />
+        </div>
+      )}
     </div>
   );
 }

@@ -127,7 +127,7 @@ export function App() {
       {settled && (
         <ErrorBoundary label="Alarms">
           <Suspense fallback={null}>
-            <AlarmModal />
+            <AlarmModal kioskMachine={kiosk && route.name === 'machine' ? route.id : null} />
           </Suspense>
         </ErrorBoundary>
       )}

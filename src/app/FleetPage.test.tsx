@@ -117,7 +117,8 @@ describe('FleetPage', () => {
     fleetStore.setState({ status: 'ready', machines: [m], error: null });
     render(<FleetPage />);
     const tile = () => screen.getByTestId('tile-first-screen');
-    expect(within(tile()).getByTestId('tile-activity').textContent).toBe('Running');
+    // The server's reading carries a critical alarm: it overrides the state chip (issue 33).
+    expect(within(tile()).getByTestId('tile-activity').textContent).toBe('Alarm · was running');
     expect(within(tile()).getByTestId('tile-label').textContent).toBe(
       'Read by the console server 3 s ago · connecting…',
     );
@@ -126,7 +127,9 @@ describe('FleetPage', () => {
     // Controller text is text: the markup is shown as written, never parsed.
     expect(within(tile()).getByTestId('tile-alarm').textContent).toContain('Torch <b>collision</b>');
     expect(tile().querySelector('b')).toBeNull();
-    expect(screen.getByTestId('summary-running').textContent).toBe('1 running');
+    // Counted once, in alarm (the counts are a partition of the fleet).
+    expect(screen.getByTestId('summary-alarm').textContent).toBe('1 in alarm');
+    expect(screen.getByTestId('summary-running').textContent).toBe('0 running');
     expect(within(tile()).getByTestId('tile-link').textContent).toMatch(/connecting/i);
     // The session's first answer: its own data replaces the server's reading.
     act(() => {
@@ -142,6 +145,8 @@ describe('FleetPage', () => {
     expect(within(tile()).getByTestId('tile-label').textContent).toBe('Ready');
     expect(within(tile()).queryByTestId('tile-alarm')).toBeNull();
     expect(screen.getByTestId('summary-running').textContent).toBe('0 running');
+    expect(screen.getByTestId('summary-alarm').textContent).toBe('0 in alarm');
+    expect(screen.getByTestId('summary-idle').textContent).toBe('1 idle');
   });
 
   it('a session that fails before any answer shows its failure, not the server reading', () => {

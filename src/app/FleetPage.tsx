@@ -5,7 +5,7 @@ import { getRuntime, fleetStore, type MachineRuntime } from '../fleet/fleet';
 import { lazyView, preloadViews } from '../fleet/lazy';
 import { linkWords } from '../fleet/contract';
 import { useDerived, useSnapshot } from '../fleet/react';
-import { mostSevereAlarm, type Activity, type MachineInfo } from '../fleet/types';
+import { mostSevereAlarm, type MachineInfo } from '../fleet/types';
 import {
   Badge,
   Button,
@@ -24,8 +24,8 @@ import { useArrangement } from './fleet-views/live';
 import { useFleetPrefs } from './fleet-views/usePrefs';
 import { MachinePage } from './pages';
 import { Link } from './router';
-import { activityOf, cardOf, firstScreenShown } from './first-screen';
-import { ACTIVITY_TONE, ACTIVITY_WORDS, LINK_TONE } from './status';
+import { cardOf, firstScreenShown } from './first-screen';
+import { LINK_TONE, shownState, summaryCounts, type SummaryBucket } from './status';
 import { useRuntimesOf } from './runtimes';
 
 /** The dense list view: its own chunk (the tiles are the first screen). */
@@ -114,48 +114,48 @@ function Tiles({ ids, byId }: { ids: readonly string[]; byId: ReadonlyMap<string
 }
 
 const SUMMARY: Array<{
-  key: string;
+  key: SummaryBucket;
   label: string;
-  match: (a: Activity, alarm: boolean) => boolean;
   tone: 'ok' | 'info' | 'paused' | 'bad' | 'muted';
 }> = [
-  { key: 'running', label: 'running', match: (a) => a === 'running', tone: 'ok' },
-  { key: 'idle', label: 'idle', match: (a) => a === 'idle', tone: 'info' },
-  { key: 'paused', label: 'paused', match: (a) => a === 'paused', tone: 'paused' },
-  {
-    key: 'alarm',
-    label: 'in alarm',
-    match: (a, alarm) => a === 'alarm' || a === 'error' || alarm,
-    tone: 'bad',
-  },
-  { key: 'offline', label: 'offline', match: (a) => a === 'offline', tone: 'muted' },
+  { key: 'running', label: 'running', tone: 'ok' },
+  { key: 'idle', label: 'idle', tone: 'info' },
+  { key: 'paused', label: 'paused', tone: 'paused' },
+  { key: 'alarm', label: 'in alarm', tone: 'bad' },
+  { key: 'offline', label: 'offline', tone: 'muted' },
+  { key: 'unknown', label: 'state unknown', tone: 'muted' },
 ];
 
-/** Counts by activity. Subscribes to each machine's snapshot for two fields only. */
+/**
+ * Counts by displayed state (status.ts): each machine in exactly one, so they add up to the
+ * fleet. Subscribes to each machine's snapshot for two fields only.
+ */
 function SummaryBar({ machines }: { machines: MachineInfo[] }) {
   const { rts, sources } = useRuntimesOf(machines);
   const counts = useDerived(
     sources,
-    () => {
-      const c: Record<string, number> = {};
-      for (const rt of rts) {
-        const s = rt.snapshot.getState();
-        const alarm = s.alarms.some((a) => a.severity === 'critical' && !a.acknowledged);
-        const activity = activityOf(rt.info, s);
-        for (const def of SUMMARY) if (def.match(activity, alarm)) c[def.key] = (c[def.key] ?? 0) + 1;
-      }
-      return c;
-    },
+    () =>
+      summaryCounts(
+        rts.map((rt) => {
+          // What the tile shows: the session's card, or the server's reading until it answers.
+          const c = cardOf(rt.info)(rt.snapshot.getState());
+          return shownState(c.activity, c.alarms);
+        }),
+      ),
     (a, b) => SUMMARY.every((d) => a[d.key] === b[d.key]),
   );
   return (
     <div className="summary" data-testid="fleet-summary" aria-label="Fleet summary">
       <span className="summary-total">{machines.length} machines</span>
-      {SUMMARY.map((d) => (
-        <Badge key={d.key} tone={(counts[d.key] ?? 0) > 0 ? d.tone : 'muted'} testId={`summary-${d.key}`}>
-          {counts[d.key] ?? 0} {d.label}
-        </Badge>
-      ))}
+      {SUMMARY.map(
+        (d) =>
+          // "state unknown" only when some machine is (the others always, zero included).
+          (d.key !== 'unknown' || counts.unknown > 0) && (
+            <Badge key={d.key} tone={counts[d.key] > 0 ? d.tone : 'muted'} testId={`summary-${d.key}`}>
+              {counts[d.key]} {d.label}
+            </Badge>
+          ),
+      )}
     </div>
   );
 }
@@ -176,6 +176,7 @@ function TileBody({ info, rt }: { info: MachineInfo; rt: MachineRuntime }) {
   // Undefined while the family's code loads (the tile shows its state meanwhile).
   const mod = useController(info.kind);
   const alarm = mostSevereAlarm(s.alarms.filter((a) => !a.acknowledged));
+  const shown = shownState(s.activity, s.alarms);
   const Extra = mod?.TileExtra;
   const nameId = useId();
   const preloadFirstTab = () =>
@@ -184,9 +185,9 @@ function TileBody({ info, rt }: { info: MachineInfo; rt: MachineRuntime }) {
   // control on the tile sits above it. No clickable <article>.
   return (
     <article
-      className={`tile activity-${s.activity}${alarm?.severity === 'critical' ? ' has-critical' : ''}`}
+      className={`tile activity-${shown.activity}${alarm?.severity === 'critical' ? ' has-critical' : ''}`}
       data-testid={`tile-${info.id}`}
-      data-activity={s.activity}
+      data-activity={shown.activity}
       aria-labelledby={nameId}
     >
       <header>
@@ -218,8 +219,8 @@ function TileBody({ info, rt }: { info: MachineInfo; rt: MachineRuntime }) {
             )}
           </div>
         </div>
-        <Badge tone={ACTIVITY_TONE[s.activity]} testId="tile-activity">
-          {ACTIVITY_WORDS[s.activity]}
+        <Badge tone={shown.tone} testId="tile-activity">
+          {shown.words}
         </Badge>
       </header>
       <div className="tile-label" data-testid="tile-label">

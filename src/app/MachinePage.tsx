@@ -5,14 +5,14 @@ import { linkWords, type TabProps, type MachineSession } from '../fleet/contract
 import { fleetStore, getRuntime, showDetail, type MachineRuntime } from '../fleet/fleet';
 import { lazyView, preloadViews, whenIdle } from '../fleet/lazy';
 import { LogView, useRole, useSnapshot } from '../fleet/react';
-import { roleAtLeast } from '../fleet/types';
+import { roleAtLeast, type Activity, type Alarm } from '../fleet/types';
 import { Badge, EmptyState, Loading, Notice } from '../ui';
 import { MachineAge } from './Age';
 import { ErrorBoundary } from './ErrorBoundary';
 import { MachineProblems } from './MachineProblems';
 import { KioskPage } from './pages';
 import { Link } from './router';
-import { ACTIVITY_TONE, ACTIVITY_WORDS, LINK_TONE } from './status';
+import { LINK_TONE, shownState } from './status';
 
 const SimulatorPanel = lazyView(() => import('./SimulatorPanel'), 'SimulatorPanel');
 
@@ -61,6 +61,7 @@ function MachinePageBody({ rt, tab }: { rt: MachineRuntime; tab: string | null }
     link: x.link,
     activity: x.activity,
     activityLabel: x.activityLabel,
+    alarms: x.alarms,
     problem: x.problem,
     identity: x.identity,
     retryAt: x.retryAt,
@@ -101,9 +102,7 @@ function MachinePageBody({ rt, tab }: { rt: MachineRuntime; tab: string | null }
           <div className="ui-muted small">{s.identity ?? info.id}</div>
         </div>
         <div className="machine-state">
-          <Badge tone={ACTIVITY_TONE[s.activity]} testId="machine-activity">
-            {ACTIVITY_WORDS[s.activity]}
-          </Badge>
+          <MachineStateChip activity={s.activity} alarms={s.alarms} />
           <div className="machine-label" data-testid="machine-label">
             {s.activityLabel}
           </div>
@@ -151,5 +150,15 @@ function MachinePageBody({ rt, tab }: { rt: MachineRuntime; tab: string | null }
         )}
       </div>
     </div>
+  );
+}
+
+/** The machine page header's state chip: an unacknowledged critical alarm overrides the activity. */
+function MachineStateChip({ activity, alarms }: { activity: Activity; alarms: readonly Alarm[] }) {
+  const shown = shownState(activity, alarms);
+  return (
+    <Badge tone={shown.tone} testId="machine-activity">
+      {shown.words}
+    </Badge>
   );
 }

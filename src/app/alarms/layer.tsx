@@ -1,4 +1,4 @@
-import { useEffect } from 'react';
+import { useEffect, useMemo } from 'react';
 import { useStore } from 'zustand';
 import { AlarmBanner, CriticalBanner, useBlockingAlarms } from '../AlarmBanner';
 import { alarmFeed, startAlarmFeed } from './feed';
@@ -6,12 +6,18 @@ import { alarmSummary } from './summary';
 
 /**
  * The alarm layer of every page (a chunk of its own, loaded when the first screen has shown):
- * follows the alarm centre's list, shows blocking alarms as a modal alert, and tells the shell
+ * follows the alarm centre's list, shows blocking alarms as a modal alert (on a kiosk, those of
+ * its own machine), and tells the shell
  * what it needs (summary.ts).
  */
-export function AlarmModal() {
+export function AlarmModal({ kioskMachine = null }: { kioskMachine?: string | null }) {
   useEffect(() => startAlarmFeed(), []);
-  const blocking = useBlockingAlarms();
+  const all = useBlockingAlarms();
+  // A kiosk blocks for its own machine only (the others are a line of the banner, CriticalBanner).
+  const blocking = useMemo(
+    () => (kioskMachine === null ? all : all.filter((b) => b.machineId === kioskMachine)),
+    [all, kioskMachine],
+  );
   const unacknowledged = useStore(
     alarmFeed,
     (s) => s.records?.filter((r) => r.clearedAt === null && r.ackAt === null).length ?? 0,

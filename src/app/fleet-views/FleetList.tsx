@@ -8,7 +8,7 @@ import { mostSevereAlarm, type MachineInfo } from '../../fleet/types';
 import { Badge, ProgressBar, formatPercent } from '../../ui';
 import { MachineAge } from '../Age';
 import { Link } from '../router';
-import { ACTIVITY_TONE, ACTIVITY_WORDS, cardFields, LINK_TONE } from '../status';
+import { cardFields, LINK_TONE, shownState } from '../status';
 import type { FleetGroup } from './arrange';
 
 const COLUMNS = ['Machine', 'Family', 'State', 'Job', 'Alarms', 'Link', 'Data'] as const;
@@ -71,10 +71,11 @@ function RowBody({ info, rt }: { info: MachineInfo; rt: MachineRuntime }) {
   const s = useSnapshot(rt, cardFields);
   const open = s.alarms.filter((a) => !a.acknowledged);
   const worst = mostSevereAlarm(open);
+  const shown = shownState(s.activity, s.alarms);
   return (
     <tr
       data-testid={`row-${info.id}`}
-      data-activity={s.activity}
+      data-activity={shown.activity}
       className={worst?.severity === 'critical' ? 'has-critical' : undefined}
     >
       <td>
@@ -89,8 +90,8 @@ function RowBody({ info, rt }: { info: MachineInfo; rt: MachineRuntime }) {
       </td>
       <td className="small">{FAMILY_LABELS[info.kind]}</td>
       <td>
-        <Badge tone={ACTIVITY_TONE[s.activity]} testId="row-activity">
-          {ACTIVITY_WORDS[s.activity]}
+        <Badge tone={shown.tone} testId="row-activity">
+          {shown.words}
         </Badge>
         <div className="small fleet-list-label" title={s.activityLabel}>
           {s.activityLabel}

@@ -11,7 +11,7 @@ import { MachineAge } from '../Age';
 import { ErrorBoundary } from '../ErrorBoundary';
 import { MachineProblems } from '../MachineProblems';
 import { cardOf, firstScreenShown } from '../first-screen';
-import { ACTIVITY_TONE, ACTIVITY_WORDS, LINK_TONE } from '../status';
+import { LINK_TONE, shownState } from '../status';
 import { KIOSK_FAMILIES, type KioskFamily } from './per-family';
 import { useScreenWakeLock, type WakeStatus } from './wake-lock';
 
@@ -47,13 +47,14 @@ export function KioskPage({ rt }: { rt: MachineRuntime }) {
   const LoginForm = mod?.LoginForm as ComponentType<TabProps<MachineSession>> | undefined;
   const Extra = family?.Extra;
   const alarm = mostSevereAlarm(s.alarms.filter((a) => !a.acknowledged));
+  const shown = shownState(s.activity, s.alarms);
 
   return (
     <TouchLockPolicy value="always">
       <div
-        className={`kiosk-page activity-${s.activity}`}
+        className={`kiosk-page activity-${shown.activity}`}
         data-testid={`kiosk-${info.id}`}
-        data-activity={s.activity}
+        data-activity={shown.activity}
       >
         <header className="kiosk-head">
           <div className="kiosk-title">
@@ -78,8 +79,8 @@ export function KioskPage({ rt }: { rt: MachineRuntime }) {
         <MachineProblems rt={rt} LoginForm={LoginForm} />
 
         <section className="kiosk-state" aria-label="State">
-          <div className={`kiosk-activity tone-${ACTIVITY_TONE[s.activity]}`} data-testid="kiosk-activity">
-            {ACTIVITY_WORDS[s.activity]}
+          <div className={`kiosk-activity tone-${shown.tone}`} data-testid="kiosk-activity">
+            {shown.words}
           </div>
           <div className="kiosk-label" data-testid="kiosk-label">
             {s.activityLabel}

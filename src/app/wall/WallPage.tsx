@@ -9,7 +9,7 @@ import { useDerived, useNow, useSnapshot } from '../../fleet/react';
 import { mostSevereAlarm, type MachineInfo } from '../../fleet/types';
 import { Badge, ProgressBar, formatDuration, formatPercent, formatTime } from '../../ui';
 import { MachineAge } from '../Age';
-import { ACTIVITY_TONE, ACTIVITY_WORDS, cardFields, LINK_TONE } from '../status';
+import { cardFields, LINK_TONE, shownState } from '../status';
 import { useRuntimesOf } from '../runtimes';
 import { alarmFeed, startAlarmFeed } from '../alarms/feed';
 import {
@@ -178,19 +178,21 @@ function WallCardBody({
   const local = inAlarmForWall(s.alarms) ? mostSevereAlarm(s.alarms.filter((a) => !a.acknowledged)) : null;
   const alarm = local ?? server ?? null;
   const alarmed = alarm !== null;
+  // The alarm centre's critical alarm counts as the machine's own (a machine no page watches).
+  const shown = shownState(s.activity, s.alarms, !local && server?.severity === 'critical');
   return (
     <article
-      className={`wall-card activity-${s.activity}${alarmed ? ' in-alarm' : ''}${big ? ' big' : ''}${highlighted ? ' highlighted' : ''}`}
+      className={`wall-card activity-${shown.activity}${alarmed ? ' in-alarm' : ''}${big ? ' big' : ''}${highlighted ? ' highlighted' : ''}`}
       data-testid={big ? 'wall-spotlight-card' : `wall-card-${info.id}`}
-      data-activity={s.activity}
+      data-activity={shown.activity}
       data-link={s.link}
       data-alarm={alarmed || undefined}
       aria-label={info.name}
     >
       <div className="wall-card-head">
         <h2 className="wall-name">{info.name}</h2>
-        <Badge tone={ACTIVITY_TONE[s.activity]} testId="wall-activity">
-          {ACTIVITY_WORDS[s.activity]}
+        <Badge tone={shown.tone} testId="wall-activity">
+          {shown.words}
         </Badge>
       </div>
       <div className="wall-sub">
