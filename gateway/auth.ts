@@ -1,9 +1,13 @@
-import { randomBytes } from 'node:crypto';
+import { createHash, randomBytes } from 'node:crypto';
 import type { Role } from '../src/fleet/types';
+import { openHistoryDb, type Db } from './history/db';
 
 /**
  * Console sessions (the HttpOnly cookie), the brute-force limiter and the addresses users log
- * in from. In memory: a restart of the gateway logs everyone out, which is the safe direction.
+ * in from. Sessions are kept across a restart of the server (`SessionStore` with a
+ * `SqliteSessionFile`: the `sessions` table of `<data>/history.sqlite`, holding the SHA-256 of
+ * each token, never the token), with the same idle timeouts; a PIN elevation is not kept (a
+ * restart ends it). The limiter and the login history are in memory.
  */
 
 export const SESSION_COOKIE = 'shopdeck_session';
@@ -26,7 +30,13 @@ export interface Elevation {
 }
 
 export interface ConsoleSession {
+  /**
+   * The cookie's value. Known in memory only: a session loaded from the file after a restart
+   * has '' here until its browser presents the token again (`get`).
+   */
   token: string;
+  /** SHA-256 (hex) of the token: the session's key, the only form of the token stored. */
+  id: string;
   user: string;
   /**
    * The user's role as last seen: set at login, updated when the users file changes (`who()` in
@@ -38,36 +48,188 @@ export interface ConsoleSession {
   elevation: Elevation | null;
 }
 
+/** What a session file holds of a session: never the token, never an elevation. */
+export interface StoredSession {
+  id: string;
+  user: string;
+  role: Role;
+  createdAt: number;
+  lastSeen: number;
+}
+
+/** Where sessions are kept across restarts. Every call may throw (the store then goes on in memory). */
+export interface SessionFile {
+  load(): StoredSession[];
+  put(s: StoredSession): void;
+  remove(id: string): void;
+  close(): void;
+}
+
+export function tokenHash(token: string): string {
+  return createHash('sha256').update(token, 'utf8').digest('hex');
+}
+
+const ROLES: ReadonlySet<string> = new Set(['viewer', 'operator', 'supervisor']);
+
+/**
+ * The `sessions` table of the history database (migration 4 in history/db.ts), on a connection
+ * of its own with `synchronous=FULL`: a logout is on disk before it is answered.
+ */
+export class SqliteSessionFile implements SessionFile {
+  private db: Db | null = null;
+
+  constructor(readonly file: string) {}
+
+  private open(): Db {
+    if (!this.db) {
+      const db = openHistoryDb(this.file).db;
+      db.pragma('synchronous = FULL');
+      this.db = db;
+    }
+    return this.db;
+  }
+
+  load(): StoredSession[] {
+    const rows = this.open()
+      .prepare('SELECT id, user, role, created_at AS createdAt, last_seen AS lastSeen FROM sessions')
+      .all() as Array<Record<string, unknown>>;
+    const out: StoredSession[] = [];
+    for (const r of rows)
+      if (
+        typeof r.id === 'string' &&
+        typeof r.user === 'string' &&
+        typeof r.role === 'string' &&
+        ROLES.has(r.role) &&
+        typeof r.createdAt === 'number' &&
+        typeof r.lastSeen === 'number'
+      )
+        out.push({
+          id: r.id,
+          user: r.user,
+          role: r.role as Role,
+          createdAt: r.createdAt,
+          lastSeen: r.lastSeen,
+        });
+    return out;
+  }
+
+  put(s: StoredSession): void {
+    this.open()
+      .prepare(
+        `INSERT INTO sessions (id, user, role, created_at, last_seen) VALUES (?, ?, ?, ?, ?)
+         ON CONFLICT (id) DO UPDATE SET user = excluded.user, role = excluded.role, last_seen = excluded.last_seen`,
+      )
+      .run(s.id, s.user, s.role, s.createdAt, s.lastSeen);
+  }
+
+  remove(id: string): void {
+    this.open().prepare('DELETE FROM sessions WHERE id = ?').run(id);
+  }
+
+  close(): void {
+    this.db?.close();
+    this.db = null;
+  }
+}
+
+/**
+ * A session's last activity is written at most this often (ms): after a restart a session may
+ * look up to this much older than it is, so it can only end sooner, never later.
+ */
+export const SESSION_TOUCH_WRITE_MS = 60_000;
+
 export class SessionStore {
   private sessions = new Map<string, ConsoleSession>();
+  private loaded = false;
+  /** lastSeen as last written, per session id. */
+  private written = new Map<string, number>();
 
   constructor(
     private readonly idle: IdleTimeouts,
     private readonly now: () => number,
+    private readonly file: SessionFile | null = null,
+    private readonly onFileError: (e: unknown) => void = () => {},
   ) {}
 
   idleSeconds(role: Role): number {
     return this.idle[role];
   }
 
+  /** Sessions ended while the file could not be written: deleted at the next write that works. */
+  private unremoved = new Set<string>();
+
+  private write(what: (f: SessionFile) => void): void {
+    if (!this.file) return;
+    try {
+      for (const id of this.unremoved) {
+        this.file.remove(id);
+        this.unremoved.delete(id);
+      }
+      what(this.file);
+    } catch (e) {
+      this.onFileError(e);
+    }
+  }
+
+  /** The kept sessions, read once (the expired ones deleted from the file). */
+  private load(): void {
+    if (this.loaded) return;
+    this.loaded = true;
+    if (!this.file) return;
+    let rows: StoredSession[];
+    try {
+      rows = this.file.load();
+    } catch (e) {
+      this.onFileError(e);
+      return;
+    }
+    const t = this.now();
+    for (const r of rows) {
+      if (t - r.lastSeen > this.idle[r.role] * 1000 || this.sessions.has(r.id)) {
+        this.write((f) => f.remove(r.id));
+        continue;
+      }
+      this.sessions.set(r.id, { token: '', elevation: null, ...r });
+      this.written.set(r.id, r.lastSeen);
+    }
+  }
+
+  private stored(s: ConsoleSession): StoredSession {
+    return { id: s.id, user: s.user, role: s.role, createdAt: s.createdAt, lastSeen: s.lastSeen };
+  }
+
   create(user: string, role: Role): ConsoleSession {
+    this.load();
     const t = this.now();
     this.prune(t);
+    const token = randomBytes(32).toString('base64url');
     const s: ConsoleSession = {
-      token: randomBytes(32).toString('base64url'),
+      token,
+      id: tokenHash(token),
       user,
       role,
       createdAt: t,
       lastSeen: t,
       elevation: null,
     };
-    this.sessions.set(s.token, s);
+    this.sessions.set(s.id, s);
+    this.written.set(s.id, t);
+    this.write((f) => f.put(this.stored(s)));
     return s;
   }
 
+  private forget(id: string): void {
+    this.sessions.delete(id);
+    this.written.delete(id);
+    this.unremoved.add(id);
+    this.write((f) => {
+      f.remove(id);
+      this.unremoved.delete(id);
+    });
+  }
+
   private prune(t: number): void {
-    for (const [k, s] of this.sessions)
-      if (t - s.lastSeen > this.idle[s.role] * 1000) this.sessions.delete(k);
+    for (const [k, s] of this.sessions) if (t - s.lastSeen > this.idle[s.role] * 1000) this.forget(k);
   }
 
   /**
@@ -76,36 +238,57 @@ export class SessionStore {
    */
   get(token: string | undefined, touch = true): ConsoleSession | { expired: ConsoleSession } | null {
     if (!token) return null;
-    const s = this.sessions.get(token);
+    this.load();
+    const id = tokenHash(token);
+    const s = this.sessions.get(id);
     if (!s) return null;
     const t = this.now();
     if (t - s.lastSeen > this.idle[s.role] * 1000) {
-      this.sessions.delete(token);
+      this.forget(id);
       return { expired: s };
     }
+    if (!s.token) s.token = token;
     if (s.elevation && s.elevation.until <= t) s.elevation = null;
-    if (touch) s.lastSeen = t;
+    if (touch) {
+      s.lastSeen = t;
+      if (t - (this.written.get(id) ?? 0) >= SESSION_TOUCH_WRITE_MS) {
+        this.written.set(id, t);
+        this.write((f) => f.put(this.stored(s)));
+      }
+    }
     return s;
+  }
+
+  /** Writes a session's role after it changed (`who()` in context.ts follows the users file). */
+  save(s: ConsoleSession): void {
+    if (this.sessions.get(s.id) === s) this.write((f) => f.put(this.stored(s)));
   }
 
   /** Every session, expired ones not yet pruned included. */
   list(): ConsoleSession[] {
+    this.load();
     return [...this.sessions.values()];
   }
 
   delete(token: string): void {
-    this.sessions.delete(token);
+    this.load();
+    this.forget(tokenHash(token));
   }
 
   /** Forget sessions of a user (removed from the users file); how many there were. */
   dropUser(user: string): number {
+    this.load();
     let n = 0;
     for (const [k, s] of this.sessions)
       if (s.user === user) {
-        this.sessions.delete(k);
+        this.forget(k);
         n++;
       }
     return n;
+  }
+
+  close(): void {
+    this.write((f) => f.close());
   }
 }
 

@@ -18,6 +18,7 @@ import {
   FailureLimiter,
   SESSION_COOKIE,
   SessionStore,
+  SqliteSessionFile,
   type ConsoleSession,
   type IdleTimeouts,
   type RateLimitOptions,
@@ -256,7 +257,10 @@ export function createContext(opts: GatewayOptions): GatewayContext {
   };
   const elevationMs =
     (opts.elevationS ?? envNumber(env, 'SHOPDECK_ELEVATION_S') ?? DEFAULT_ELEVATION_S) * 1000;
-  const sessions = new SessionStore(idle, now);
+  // Kept in the history database across restarts (auth.ts): only a hash of each token.
+  const sessions = new SessionStore(idle, now, new SqliteSessionFile(audit.file), (e) =>
+    log.error('the session file cannot be written: sessions are kept in memory only', { error: String(e) }),
+  );
   const limiter = new FailureLimiter({ ...DEFAULT_RATE_LIMIT, ...opts.rateLimit }, now);
   const byId = new Map(config.machines.map((m) => [m.id, m]));
   const secretsOf = new Map(config.machines.map((m) => [m.id, secretForms(m.secrets)]));
@@ -402,7 +406,8 @@ export function createContext(opts: GatewayOptions): GatewayContext {
   const scrub = (text: string): string => redact(text, allSecrets);
   // ---------------------------------------------------------------- who is asking
 
-  let seenUsers = users.generation;
+  // Sessions kept from before a restart are checked against the users file at the first request.
+  let seenUsers = Number.NaN;
   /**
    * Sessions follow the users file as soon as it changes (any request notices): a session takes
    * its user's new role (and with it the idle timeout), an unlock ends when the tablet's user is
@@ -438,6 +443,7 @@ export function createContext(opts: GatewayOptions): GatewayContext {
           });
         seen.add(u.name);
         s.role = u.role;
+        sessions.save(s);
       }
       if (s.elevation && u.role !== 'operator') {
         record({

@@ -246,6 +246,7 @@ export function createGateway(opts: GatewayOptions): Gateway {
     for (const w of watches) w.stop();
     stopHistoryFeed();
     history.close(); // last-seen times written, the file closed (synchronous)
+    ctx.sessions.close(); // the kept sessions' file (auth.ts)
     webhook.close();
     alarms.close().catch((e: unknown) => {
       ctx.log.error('could not write the alarm list at shutdown', { error: String(e) });

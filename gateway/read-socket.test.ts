@@ -219,6 +219,26 @@ describe('attacks on the read socket', () => {
     expect(s.stub.seen.length).toBe(before);
   });
 
+  it('a controller that refuses its key (401) answers 401 for its own read; the socket stays open for the others', async () => {
+    const s = await setup();
+    const cookie = await login(s.gw.url, 'vera', 'viewer-pass-1');
+    const r = await reader(s, cookie);
+    s.stub.respond = (req, res) => {
+      // A TouchCut refusing its API key, a Duet whose session expired.
+      res.writeHead(401, { 'Content-Type': 'application/json' });
+      res.end(JSON.stringify({ error: 'invalid api key' }));
+    };
+    const refused = await r.ask({ id: 1, url: '/machines/p1/status' });
+    expect(refused.status).toBe(401);
+    s.stub.respond = (req, res) => {
+      res.writeHead(200, { 'Content-Type': 'application/json' });
+      res.end(JSON.stringify({ ok: true, path: req.url }));
+    };
+    const other = await r.ask({ id: 2, url: '/machines/p2/status' });
+    expect(other.status).toBe(200);
+    expect(r.ws.readyState).toBe(WebSocket.OPEN);
+  });
+
   it('a page cannot make the gateway hold more than its share of reads at once', async () => {
     const s = await setup();
     const held: Array<() => void> = [];

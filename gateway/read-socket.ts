@@ -332,8 +332,10 @@ export function createReadSocket(
             if (Buffer.byteLength(text) > limits.maxAnswer) send(tooLarge(id));
             else sendText(text);
             // The user's session ended (logged out, expired, removed): the page learns it from
-            // this answer (401) and reads over HTTP from now on.
-            if (a.status === 401) client.close(4401, 'log in again');
+            // this answer (401) and reads over HTTP from now on. A controller's own 401 (a
+            // refused API key, its session expired) is that machine's answer only: the socket
+            // stays open for every other machine's reads.
+            if (a.status === 401 && !who(req, false).principal) client.close(4401, 'log in again');
           },
           (e: unknown) => {
             giveBack(f);

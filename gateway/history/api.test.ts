@@ -231,7 +231,7 @@ describe('/api/history: answers', () => {
     expect(ok.status).toBe(200);
     expect(await ok.json()).toMatchObject({ shifts, retention: { jobsDays: 30, statesDays: 7 } });
     const info = await json<Record<string, unknown>>(otto, '/api/history/info');
-    expect(info).toMatchObject({ shifts, retention: { jobsDays: 30, statesDays: 7 }, schemaVersion: 3 });
+    expect(info).toMatchObject({ shifts, retention: { jobsDays: 30, statesDays: 7 }, schemaVersion: 4 });
     expect(info['sizeBytes']).toEqual(expect.any(Number));
     expect((await get(sam, '/api/history/shift-report?shift=Early')).status).toBe(404);
     expect((await get(sam, '/api/history/shift-report?shift=Day')).status).toBe(200);

@@ -117,6 +117,21 @@ export const MIGRATIONS: readonly Migration[] = [
       );
     `,
   },
+  {
+    // Console sessions (gateway/auth.ts), kept across restarts: the SHA-256 of the token, never
+    // the token; ended (deleted) by logout, idle timeout and removal of the user.
+    name: 'console sessions',
+    sql: `
+      CREATE TABLE sessions (
+        id TEXT PRIMARY KEY CHECK (length(id) = 64),
+        user TEXT NOT NULL,
+        role TEXT NOT NULL CHECK (role IN ('viewer', 'operator', 'supervisor')),
+        created_at INTEGER NOT NULL,
+        last_seen INTEGER NOT NULL
+      );
+      CREATE INDEX sessions_user ON sessions (user);
+    `,
+  },
 ];
 
 export class NewerSchemaError extends Error {}

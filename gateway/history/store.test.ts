@@ -65,7 +65,15 @@ describe('history database: migrations', () => {
     const s = open();
     expect(schemaVersion(s.db)).toBe(MIGRATIONS.length);
     expect(s.applied).toEqual(MIGRATIONS.map((m) => m.name));
-    expect(tables(s.db)).toEqual(['audit', 'audit_imports', 'jobs', 'last_seen', 'states', 'touchcut_days']);
+    expect(tables(s.db)).toEqual([
+      'audit',
+      'audit_imports',
+      'jobs',
+      'last_seen',
+      'sessions',
+      'states',
+      'touchcut_days',
+    ]);
     expect(s.db.pragma('journal_mode', { simple: true })).toBe('wal');
     expect(s.db.pragma('synchronous', { simple: true })).toBe(1); // NORMAL
     expect(statSync(s.file).mode & 0o777).toBe(0o600);

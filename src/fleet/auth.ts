@@ -16,6 +16,20 @@ export interface AuthState {
 
 export const authStore = createStore<AuthState>(() => ({ mode: 'unknown', user: null }));
 
+/**
+ * The console's own server said this page's session is gone (its own 401, marked
+ * `X-Shopdeck-Gateway`, or the read socket closed 4401): never a controller's 401, which is that
+ * machine's answer only. The listener (src/app/auth/api.ts) asks the server who is signed in.
+ */
+const sessionGoneListeners = new Set<() => void>();
+export function onSessionGone(fn: () => void): () => void {
+  sessionGoneListeners.add(fn);
+  return () => sessionGoneListeners.delete(fn);
+}
+export function sessionGone(): void {
+  for (const fn of sessionGoneListeners) fn();
+}
+
 /** The principal commands are sent as. In open mode everyone is a supervisor. */
 export function currentPrincipal(): Principal {
   const s = authStore.getState();

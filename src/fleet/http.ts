@@ -1,4 +1,5 @@
 import type { z } from 'zod/mini';
+import { sessionGone } from './auth';
 import { commandScope, DEADLINE_GRACE_MS } from './commands';
 import { LinkError, protocolError, wordsOf } from './errors';
 import { CONSOLE_HEADERS, machineBase } from './origin';
@@ -297,6 +298,8 @@ function gatewayFailure(status: number, headers: Headers, body: unknown): LinkEr
       : null;
   const marked = headers.get('x-shopdeck-gateway') === 'error';
   if (!marked && !(rec?.gateway === true && status >= 500)) return null;
+  // The console's own 401: this page's session is gone (a controller's 401 is never marked).
+  if (marked && status === 401) sessionGone();
   const said = rec && typeof rec.error === 'string' ? rec.error.trim() : '';
   const words = said || `the console server answered HTTP ${status}`;
   const kind = status === 504 ? 'timeout' : status >= 500 ? 'network' : 'http';

@@ -1,5 +1,6 @@
 import { afterEach, beforeEach, describe, expect, it, vi } from 'vitest';
 import { z } from 'zod/mini';
+import { onSessionGone } from './auth';
 import { LinkError } from './errors';
 import { installFakeFetch, type FakeFetch } from './fake-fetch.test-util';
 import { HttpClient } from './http';
@@ -18,7 +19,7 @@ class FakeSocket {
   closedWith: number | null = null;
   onopen: (() => void) | null = null;
   onmessage: ((ev: { data: unknown }) => void) | null = null;
-  onclose: (() => void) | null = null;
+  onclose: ((ev?: { code: number }) => void) | null = null;
   constructor(readonly url: string) {
     FakeSocket.all.push(this);
   }
@@ -34,9 +35,9 @@ class FakeSocket {
     this.readyState = 1;
     this.onopen?.();
   }
-  drop(): void {
+  drop(code?: number): void {
     this.readyState = 3;
-    this.onclose?.();
+    this.onclose?.(code === undefined ? undefined : { code });
   }
   say(msg: unknown): void {
     this.onmessage?.({ data: typeof msg === 'string' ? msg : JSON.stringify(msg) });
@@ -262,4 +263,23 @@ describe('parseAnswer', () => {
       expect(parseAnswer(bad), bad).toBeNull();
     expect(parseAnswer(new ArrayBuffer(2))).toBeNull();
   });
+});
+
+describe('the read socket and the console session (issue 33)', () => {
+  for (const [code, gone] of [
+    [4401, true],
+    [1006, false],
+    [1001, false],
+  ] as const)
+    it(`closed ${code}: the page ${gone ? 'hears its session is gone' : 'does not take it for a sign-out'}`, () => {
+      const { sock } = openSocket();
+      const heard = vi.fn();
+      const stop = onSessionGone(heard);
+      try {
+        sock.drop(code);
+        expect(heard).toHaveBeenCalledTimes(gone ? 1 : 0);
+      } finally {
+        stop();
+      }
+    });
 });

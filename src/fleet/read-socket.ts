@@ -1,3 +1,4 @@
+import { sessionGone } from './auth';
 import { apiOrigin, wsUrlFor } from './origin';
 
 /**
@@ -113,7 +114,9 @@ export class ReadSocket {
       this.failures = 0;
     };
     ws.onmessage = (ev: MessageEvent) => this.answer(ev.data);
-    ws.onclose = () => {
+    ws.onclose = (ev?: CloseEvent) => {
+      // The console's own session ended (read-socket.ts on the server closes 4401 for that only).
+      if (ev?.code === 4401) sessionGone();
       if (this.ws !== ws) return;
       // Closed before it ever opened: the gateway refused it (logged out) or is not there.
       if (!this.open) this.failed();

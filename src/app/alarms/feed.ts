@@ -1,7 +1,7 @@
 import { z } from 'zod/mini';
 import { createStore } from 'zustand/vanilla';
 import { alarmRecordSchema, type AlarmRecord } from '../../fleet/alarm-record';
-import { authStore } from '../../fleet/auth';
+import { authStore, sessionGone } from '../../fleet/auth';
 import { allRuntimes } from '../../fleet/fleet';
 import { CONSOLE_HEADERS } from '../../fleet/origin';
 
@@ -71,6 +71,8 @@ export async function refreshAlarms(): Promise<void> {
       signal: ctl.signal,
     });
     if (!r.ok) {
+      // The console's own 401: this page's session is gone (the sign-in is shown).
+      if (r.status === 401) sessionGone();
       alarmFeed.setState({ error: `The alarm list could not be read (HTTP ${r.status}).` });
       return;
     }

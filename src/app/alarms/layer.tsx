@@ -30,5 +30,16 @@ export function AlarmModal({ kioskMachine = null }: { kioskMachine?: string | nu
 
 /** The banner of critical alarms that do not block, at the top of every page. */
 export function AlarmStrip({ hideOn, kiosk }: { hideOn: string | null; kiosk: boolean }) {
-  return <CriticalBanner hideOn={hideOn} kiosk={kiosk} />;
+  // When the list cannot be read the page says so: never an all-clear it does not know.
+  const error = useStore(alarmFeed, (s) => s.error);
+  return (
+    <>
+      {error && (
+        <p className="alarm-error" role="status" data-testid="alarms-unreadable">
+          Cannot read the alarms: {error}
+        </p>
+      )}
+      <CriticalBanner hideOn={hideOn} kiosk={kiosk} />
+    </>
+  );
 }

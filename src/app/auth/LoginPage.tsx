@@ -14,6 +14,7 @@ export function nextPath(search: string): string {
 
 function LoginForm() {
   const expired = useStore(sessionExtra, (s) => s.expired);
+  const signedOut = useStore(sessionExtra, (s) => s.signedOut);
   const [name, setName] = useState('');
   const [password, setPassword] = useState('');
   const [busy, setBusy] = useState(false);
@@ -41,10 +42,16 @@ function LoginForm() {
 
   return (
     <form className="auth-form" onSubmit={(e) => void submit(e)} noValidate data-testid="login-form">
-      {expired && (
+      {expired ? (
         <Notice tone="info" title="You were signed out">
           Your session ended after a while without activity. Sign in again.
         </Notice>
+      ) : (
+        signedOut && (
+          <Notice tone="info" title="Signed out — sign in again">
+            This screen&apos;s session ended (signed out, or removed on the server). Sign in again.
+          </Notice>
+        )
       )}
       <Field label="Name">
         {(id) => (

@@ -122,3 +122,41 @@ describe('auth api', () => {
     expect(auditQuery({ to: 'not a date' })).toBe('');
   });
 });
+
+describe('a screen whose session is gone (issue 33)', () => {
+  afterEach(() => {
+    vi.unstubAllGlobals();
+    sessionExtra.setState({ signedOut: false });
+  });
+
+  it('the console’s own 401 on a read makes the page ask who is signed in: gone → signed out, the sign-in shown', async () => {
+    const { gatewayError } = await import('../../fleet/http');
+    authStore.setState({ mode: 'secured', user: { name: 'vera', role: 'viewer', machines: null } });
+    const fetchMock = vi.fn<typeof fetch>(() =>
+      Promise.resolve(
+        json({ mode: 'secured', user: null, idleTimeoutS: null, elevation: null, expired: false }),
+      ),
+    );
+    vi.stubGlobal('fetch', fetchMock);
+    gatewayError(new Response('{}', { status: 401, headers: { 'X-Shopdeck-Gateway': 'error' } }), {
+      error: 'log in first',
+    });
+    // Nothing but the console's own 401 asks: the page's listener (api.ts) does.
+    await vi.waitFor(() => expect(sessionExtra.getState().signedOut).toBe(true));
+    expect(fetchMock.mock.calls.map((c) => String(c[0]))).toEqual(['/api/session']);
+    expect(authStore.getState().user).toBeNull();
+    expect(sessionExtra.getState().signedOut).toBe(true);
+  });
+
+  it('a controller’s own 401 (a TouchCut refusing its key) is that machine’s answer: the session is not asked about', async () => {
+    const { gatewayError } = await import('../../fleet/http');
+    authStore.setState({ mode: 'secured', user: { name: 'vera', role: 'viewer', machines: null } });
+    const fetchMock = vi.fn<typeof fetch>(() => Promise.resolve(json({})));
+    vi.stubGlobal('fetch', fetchMock);
+    expect(gatewayError(new Response('{}', { status: 401 }), { error: 'invalid api key' })).toBeNull();
+    await Promise.resolve();
+    expect(fetchMock).not.toHaveBeenCalled();
+    expect(authStore.getState().user?.name).toBe('vera');
+    expect(sessionExtra.getState().signedOut).toBe(false);
+  });
+});

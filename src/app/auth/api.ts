@@ -1,6 +1,6 @@
 import { z } from 'zod/mini';
 import { createStore } from 'zustand/vanilla';
-import { authStore } from '../../fleet/auth';
+import { authStore, onSessionGone } from '../../fleet/auth';
 import { ROLES } from '../../fleet/types';
 import { CONSOLE_HEADERS } from '../../fleet/origin';
 
@@ -38,6 +38,8 @@ export interface SessionExtra {
   expired: boolean;
   /** This store has been filled from the gateway at least once. */
   loaded: boolean;
+  /** The session this page was signed in with ended while the page was open ("Signed out — sign in again"). */
+  signedOut: boolean;
 }
 
 /** What `authStore` has no room for. */
@@ -46,6 +48,7 @@ export const sessionExtra = createStore<SessionExtra>(() => ({
   elevation: null,
   expired: false,
   loaded: false,
+  signedOut: false,
 }));
 
 export class AuthError extends Error {
@@ -72,6 +75,7 @@ function apply(s: SessionInfo): SessionInfo {
         : null,
     expired: s.expired ?? false,
     loaded: true,
+    ...(s.user ? { signedOut: false } : {}),
   });
   // When the elevation runs out the gateway falls back to the operator: follow it.
   if (elevationTimer) clearTimeout(elevationTimer);
@@ -111,6 +115,28 @@ async function post(path: string, body?: unknown, method = 'POST'): Promise<Resp
 async function sessionFrom(r: Response): Promise<SessionInfo> {
   return apply(SessionSchema.parse(await r.json()));
 }
+
+let checking: Promise<void> | null = null;
+
+/**
+ * The console's own server said this page's session is gone: ask it who is signed in (once at a
+ * time). Really gone: `authStore.user` becomes null, so every screen shows the sign-in with
+ * "Signed out — sign in again" instead of tiles that can no longer be read.
+ */
+export function checkSession(): Promise<void> {
+  if (checking) return checking;
+  const had = authStore.getState().mode === 'secured' && authStore.getState().user !== null;
+  checking = fetchSession()
+    .then((s) => {
+      if (had && s.mode === 'secured' && !s.user) sessionExtra.setState({ signedOut: true });
+    })
+    .catch(() => undefined)
+    .finally(() => {
+      checking = null;
+    });
+  return checking;
+}
+onSessionGone(() => void checkSession());
 
 /** `GET /api/session` into `authStore`. */
 export async function fetchSession(): Promise<SessionInfo> {

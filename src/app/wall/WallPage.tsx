@@ -12,6 +12,7 @@ import { MachineAge } from '../Age';
 import { cardFields, LINK_TONE, shownState } from '../status';
 import { useRuntimesOf } from '../runtimes';
 import { alarmFeed, startAlarmFeed } from '../alarms/feed';
+import { sessionExtra } from '../auth/api';
 import {
   inAlarmForWall,
   nextSpotlight,
@@ -30,11 +31,16 @@ import {
 export function WallPage() {
   const mode = useStore(authStore, (s) => s.mode);
   const user = useStore(authStore, (s) => s.user);
+  const signedOut = useStore(sessionExtra, (s) => s.signedOut);
   const { machines, status, error } = useStore(fleetStore);
   if (mode === 'secured' && !user)
     return (
       <WallMessage>
-        The wall screen needs a signed-in session: sign in on this screen at /login, then open /wall.
+        {signedOut ? 'Signed out — sign in again. ' : ''}The wall screen needs a signed-in session:{' '}
+        <a href="/login?next=%2Fwall" data-testid="wall-sign-in">
+          sign in
+        </a>{' '}
+        on this screen, then it shows the fleet.
       </WallMessage>
     );
   if (status === 'loading') return <WallMessage>Loading the fleet…</WallMessage>;
@@ -62,6 +68,8 @@ function Wall({ machines }: { machines: MachineInfo[] }) {
   // And by the alarm centre's list (the server sees what no page watches).
   useEffect(() => startAlarmFeed(), []);
   const records = useStore(alarmFeed, (s) => s.records);
+  // No answer yet, or the last read failed (401, error): the header says so, never "No alarms".
+  const unreadable = useStore(alarmFeed, (s) => s.error !== null || s.records === null);
   const serverAlarms = useMemo(() => serverAlarmsForWall(records), [records]);
   const combined = useMemo(
     () => machines.filter((m) => localInAlarm.includes(m.id) || serverAlarms.has(m.id)).map((m) => m.id),
@@ -91,6 +99,7 @@ function Wall({ machines }: { machines: MachineInfo[] }) {
       <WallHeader
         total={machines.length}
         inAlarm={inAlarm.length}
+        unreadable={unreadable}
         spot={spotInfo ? inAlarm.indexOf(spotInfo.id) : -1}
       />
       <div className="wall-body">
@@ -126,7 +135,17 @@ function Wall({ machines }: { machines: MachineInfo[] }) {
   );
 }
 
-function WallHeader({ total, inAlarm, spot }: { total: number; inAlarm: number; spot: number }) {
+function WallHeader({
+  total,
+  inAlarm,
+  spot,
+  unreadable,
+}: {
+  total: number;
+  inAlarm: number;
+  spot: number;
+  unreadable: boolean;
+}) {
   const now = useNow(1000);
   return (
     <header className="wall-head">
@@ -136,11 +155,18 @@ function WallHeader({ total, inAlarm, spot }: { total: number; inAlarm: number; 
       </span>
       <span data-testid="wall-count">{total} machines</span>
       <span
-        className={inAlarm > 0 ? 'wall-alarm-count tone-bad' : 'wall-alarm-count'}
+        className={inAlarm > 0 || unreadable ? 'wall-alarm-count tone-bad' : 'wall-alarm-count'}
         data-testid="wall-alarm-count"
       >
-        {inAlarm === 0 ? 'No alarms' : inAlarm === 1 ? '1 in alarm' : `${inAlarm} in alarm`}
+        {inAlarm === 0
+          ? unreadable
+            ? 'Cannot read the alarms'
+            : 'No alarms'
+          : inAlarm === 1
+            ? '1 in alarm'
+            : `${inAlarm} in alarm`}
         {inAlarm > 1 && spot >= 0 && ` · showing ${spot + 1} of ${inAlarm}`}
+        {inAlarm > 0 && unreadable && ' · cannot read the alarms'}
       </span>
       <time className="wall-clock" data-testid="wall-clock">
         {formatTime(now)}
