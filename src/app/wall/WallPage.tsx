@@ -11,6 +11,7 @@ import { Badge, ProgressBar, formatDuration, formatPercent, formatTime } from '.
 import { MachineAge } from '../Age';
 import { ACTIVITY_TONE, ACTIVITY_WORDS, cardFields, LINK_TONE } from '../status';
 import { useRuntimesOf } from '../runtimes';
+import { usePageTitle } from '../router';
 import { alarmFeed, startAlarmFeed } from '../alarms/feed';
 import {
   inAlarmForWall,
@@ -31,6 +32,7 @@ export function WallPage() {
   const mode = useStore(authStore, (s) => s.mode);
   const user = useStore(authStore, (s) => s.user);
   const { machines, status, error } = useStore(fleetStore);
+  usePageTitle('Wall screen');
   if (mode === 'secured' && !user)
     return (
       <WallMessage>
