@@ -17,7 +17,7 @@ import {
   MachinePage,
   WallPage,
 } from './pages';
-import { Link, matchRoute, useLocation } from './router';
+import { Link, matchRoute, Titled, useLocation } from './router';
 import { Shortcuts } from './shortcuts/lazy';
 
 // The alarm layer (banner, modal alert, the list it follows): loaded once the first screen shows.
@@ -74,14 +74,24 @@ export function App() {
       break;
     case 'family-page': {
       const page = familyPages.find((p) => p.kind === route.kind && p.path === route.page);
-      body = page ? <page.Component /> : <EmptyState>There is no page here.</EmptyState>;
+      body = page ? (
+        <Titled title={page.label}>
+          <page.Component />
+        </Titled>
+      ) : (
+        <Titled title="No page here">
+          <EmptyState>There is no page here.</EmptyState>
+        </Titled>
+      );
       break;
     }
     default:
       body = (
-        <EmptyState>
-          There is no page here. <Link to="/">Back to the fleet</Link>
-        </EmptyState>
+        <Titled title="No page here">
+          <EmptyState>
+            There is no page here. <Link to="/">Back to the fleet</Link>
+          </EmptyState>
+        </Titled>
       );
   }
 
@@ -89,6 +99,19 @@ export function App() {
     <div className={kiosk ? 'app kiosk' : 'app'}>
       {/* A blocking alarm makes the whole page behind it inert: no click, no focus, no reading. */}
       <div className="app-page" inert={blocking > 0} data-testid="app-page">
+        {/* The first stop of the Tab key: past the top bar, to the page itself. */}
+        {!kiosk && (
+          <a
+            className="skip-link"
+            href="#main"
+            onClick={(e) => {
+              e.preventDefault();
+              document.getElementById('main')?.focus();
+            }}
+          >
+            Skip to main content
+          </a>
+        )}
         {/* The top bar is a chunk of its own: a kiosk tablet never loads it (issue 16). */}
         {!kiosk && (
           <Suspense fallback={<header className="topbar" aria-hidden="true" />}>
@@ -110,13 +133,13 @@ export function App() {
           </div>
         )}
         {mode === 'secured' && !user && route.name !== 'login' ? (
-          <main className="main">
+          <main className="main" id="main" tabIndex={-1}>
             <Suspense fallback={<Loading />}>
               <LoginPage />
             </Suspense>
           </main>
         ) : (
-          <main className="main">
+          <main className="main" id="main" tabIndex={-1}>
             <ErrorBoundary label="Page">
               {/* Every page is a chunk of its own (issue 16). */}
               <Suspense fallback={<Loading />}>{body}</Suspense>

@@ -23,7 +23,7 @@ import { FleetToolbar } from './fleet-views/FleetToolbar';
 import { useArrangement } from './fleet-views/live';
 import { useFleetPrefs } from './fleet-views/usePrefs';
 import { MachinePage } from './pages';
-import { Link } from './router';
+import { Link, usePageTitle } from './router';
 import { cardOf, firstScreenShown } from './first-screen';
 import { LINK_TONE, shownState, summaryCounts, type SummaryBucket } from './status';
 import { useRuntimesOf } from './runtimes';
@@ -33,20 +33,26 @@ const FleetList = lazyView(() => import('./fleet-views/FleetList'), 'FleetList')
 
 export function FleetPage() {
   const { machines, status, error } = useStore(fleetStore);
-  if (status === 'loading') return <EmptyState>Loading the fleet…</EmptyState>;
-  if (status === 'error')
-    return (
-      <Notice tone="bad" title="The fleet could not be loaded">
-        {error}
-      </Notice>
-    );
-  if (machines.length === 0)
-    return (
-      <EmptyState>
-        No machines. Add them to <code>machines.json</code> (see the README), or sign in to see yours.
-      </EmptyState>
-    );
-  return <FleetBody machines={machines} />;
+  usePageTitle('Fleet');
+  return (
+    <>
+      {/* The page's heading, for a screen reader's outline (the top bar shows where one is). */}
+      <h1 className="sr-only">Fleet</h1>
+      {status === 'loading' ? (
+        <EmptyState>Loading the fleet…</EmptyState>
+      ) : status === 'error' ? (
+        <Notice tone="bad" title="The fleet could not be loaded">
+          {error}
+        </Notice>
+      ) : machines.length === 0 ? (
+        <EmptyState>
+          No machines. Add them to <code>machines.json</code> (see the README), or sign in to see yours.
+        </EmptyState>
+      ) : (
+        <FleetBody machines={machines} />
+      )}
+    </>
+  );
 }
 
 function FleetBody({ machines }: { machines: MachineInfo[] }) {

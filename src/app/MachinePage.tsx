@@ -11,7 +11,7 @@ import { MachineAge } from './Age';
 import { ErrorBoundary } from './ErrorBoundary';
 import { MachineProblems } from './MachineProblems';
 import { KioskPage } from './pages';
-import { Link } from './router';
+import { Link, usePageTitle } from './router';
 import { LINK_TONE, shownState } from './status';
 
 const SimulatorPanel = lazyView(() => import('./SimulatorPanel'), 'SimulatorPanel');
@@ -80,6 +80,7 @@ function MachinePageBody({ rt, tab }: { rt: MachineRuntime; tab: string | null }
   if (info.simulated && roleAtLeast(role, 'supervisor'))
     tabs.push({ id: 'simulator', label: 'Simulator', render: () => <SimulatorPanel id={info.id} /> });
   const current = tabs.find((t) => t.id === tab) ?? tabs[0];
+  usePageTitle(`${info.name} — ${shownState(s.activity, s.alarms).words}`);
   // While this page shows, the machine's detail reads run at full pace (4 Hz positions…).
   useEffect(() => showDetail(info.id), [info.id]);
   // The other tabs' code, when the browser has nothing else to do: a tab switch is instant.

@@ -1,6 +1,10 @@
-import { useEffect, useState } from 'react';
+import { useEffect, useRef, useState } from 'react';
+import { useStore } from 'zustand';
 import { familyPages } from '../controllers';
-import { AuthMenu } from './auth/UserControls';
+import { authStore } from '../fleet/auth';
+import { Badge, Button } from '../ui';
+import { logout, sessionExtra } from './auth/api';
+import { PinUnlock } from './auth/UserControls';
 import { Link } from './router';
 
 type ThemeChoice = 'system' | 'light' | 'dark';
@@ -18,57 +22,144 @@ function useTheme(): [ThemeChoice, (t: ThemeChoice) => void] {
   return [theme, setTheme];
 }
 
+const MENU_ID = 'topbar-menu';
+
+/** The main pages: in the bar, and in the menu on a phone (where the bar has no room for them). */
+function PageLinks(props: { route: string; activeAlarms: number; inMenu?: boolean; onPick?: () => void }) {
+  const { route, activeAlarms, inMenu, onPick } = props;
+  const at = (name: string) => (route === name ? 'page' : undefined);
+  return (
+    <>
+      <Link to="/" aria-current={at('fleet')} onClick={onPick}>
+        Fleet
+      </Link>
+      <Link
+        to="/alarms"
+        aria-current={at('alarms')}
+        onClick={onPick}
+        data-testid={inMenu ? undefined : 'nav-alarms'}
+      >
+        Alarms
+        {activeAlarms > 0 && (
+          <span className="nav-count">
+            {activeAlarms}
+            <span className="sr-only"> unacknowledged</span>
+          </span>
+        )}
+      </Link>
+      <Link to="/history" aria-current={at('history')} onClick={onPick}>
+        History
+      </Link>
+    </>
+  );
+}
+
 /**
- * The console's top bar: the brand, the main pages, the theme and the user menu. A chunk of its own,
- * loaded with the first page (a kiosk tablet shows none).
+ * The console's top bar, one row on a 1024 px tablet: the brand, the main pages (Fleet, Alarms,
+ * History, the current one `aria-current`), an operator's supervisor unlock (a compact chip while
+ * unlocked), and one menu with the rest: who is signed in, the theme, the supervisors' pages (the
+ * audit log, finding lasers; not offered to those the gateway refuses them to), sign out. On a
+ * phone the main pages move into the menu. A chunk of its own, loaded with the first page (a kiosk
+ * tablet shows none).
  */
 export function TopBar({ route, activeAlarms }: { route: string; activeAlarms: number }) {
   const [theme, setTheme] = useTheme();
+  const mode = useStore(authStore, (s) => s.mode);
+  const user = useStore(authStore, (s) => s.user);
+  const elevation = useStore(sessionExtra, (s) => s.elevation);
+  // What the gateway lets a supervisor (or anyone, in open mode) see: the rest are refused it.
+  const supervisor = mode === 'open' || user?.role === 'supervisor' || elevation !== null;
+  const menu = useRef<HTMLDivElement>(null);
+  const close = () => {
+    // A browser without popovers (a test's DOM) has nothing to close.
+    const m = menu.current;
+    if (typeof m?.hidePopover === 'function') m.hidePopover();
+  };
+  // A new page closes the menu (back, forward, a shortcut).
+  useEffect(() => close(), [route]);
+  const at = (name: string) => (route === name ? 'page' : undefined);
   return (
     <header className="topbar">
       <Link to="/" className="brand" aria-label="Shopdeck fleet">
         <img src="/favicon.svg" alt="" width={26} height={26} />
-        Shopdeck
+        <span className="brand-name">Shopdeck</span>
       </Link>
       <nav className="topnav" aria-label="Main">
-        <Link to="/" className={route === 'fleet' ? 'active' : ''}>
-          Fleet
-        </Link>
-        <Link to="/alarms" className={route === 'alarms' ? 'active' : ''} data-testid="nav-alarms">
-          Alarms
+        <PageLinks route={route} activeAlarms={activeAlarms} />
+      </nav>
+      <div className="topbar-right">
+        <PinUnlock compact />
+        <button
+          type="button"
+          className="ui-button secondary topbar-menu-button"
+          popoverTarget={MENU_ID}
+          data-testid="topbar-menu-button"
+        >
+          {mode === 'secured' && user ? (
+            <>
+              <span className="topbar-user">{elevation ? elevation.operator : user.name}</span>
+              <Badge
+                tone={user.role === 'supervisor' ? 'paused' : user.role === 'operator' ? 'info' : 'muted'}
+                plain
+                testId="user-role"
+              >
+                {user.role}
+              </Badge>
+            </>
+          ) : (
+            'Menu'
+          )}
           {activeAlarms > 0 && (
-            <span className="nav-count" aria-label={`${activeAlarms} unacknowledged`}>
+            <span className="nav-count topbar-menu-count" aria-hidden="true">
               {activeAlarms}
             </span>
           )}
-        </Link>
-        <Link to="/history" className={route === 'history' ? 'active' : ''}>
-          History
-        </Link>
-        <Link to="/audit" className={route === 'audit' ? 'active' : ''}>
-          Audit
-        </Link>
-        {familyPages.map((p) => (
-          <Link key={`${p.kind}/${p.path}`} to={`/${p.kind}/${p.path}`}>
-            {p.label}
-          </Link>
-        ))}
-      </nav>
-      <div className="topbar-right">
+          <span aria-hidden="true" className="topbar-caret">
+            ▾
+          </span>
+        </button>
+      </div>
+      <div id={MENU_ID} ref={menu} popover="auto" className="topbar-menu" data-testid="topbar-menu">
+        <nav className="menu-pages" aria-label="Pages">
+          <PageLinks route={route} activeAlarms={activeAlarms} inMenu onPick={close} />
+        </nav>
+        {supervisor && (
+          <nav className="menu-links" aria-label="Supervisor">
+            <Link to="/audit" aria-current={at('audit')} onClick={close}>
+              Audit log
+            </Link>
+            {familyPages.map((p) => (
+              <Link
+                key={`${p.kind}/${p.path}`}
+                to={`/${p.kind}/${p.path}`}
+                aria-current={
+                  route === 'family-page' && location.pathname === `/${p.kind}/${p.path}` ? 'page' : undefined
+                }
+                onClick={close}
+              >
+                {p.label}
+              </Link>
+            ))}
+          </nav>
+        )}
         <label className="theme-pick">
-          <span className="sr-only">Theme</span>
+          <span>Theme</span>
           <select
             className="ui-input"
             value={theme}
             onChange={(e) => setTheme(e.target.value as ThemeChoice)}
-            aria-label="Theme"
           >
-            <option value="system">Theme: system</option>
-            <option value="light">Theme: light</option>
-            <option value="dark">Theme: dark</option>
+            <option value="system">System</option>
+            <option value="light">Light</option>
+            <option value="dark">Dark</option>
           </select>
         </label>
-        <AuthMenu />
+        {mode === 'secured' &&
+          (user ? (
+            <Button onClick={() => void logout().then(() => location.assign('/login'))}>Sign out</Button>
+          ) : (
+            <a href="/login">Sign in</a>
+          ))}
       </div>
     </header>
   );

@@ -1,4 +1,10 @@
-import { useSyncExternalStore, type AnchorHTMLAttributes, type MouseEvent } from 'react';
+import {
+  useEffect,
+  useSyncExternalStore,
+  type AnchorHTMLAttributes,
+  type MouseEvent,
+  type ReactNode,
+} from 'react';
 
 /** A tiny history router: the console has a handful of routes and bookmarkable machine pages. */
 const listeners = new Set<() => void>();
@@ -35,6 +41,22 @@ export function useLocation(): { pathname: string; search: string } {
   );
   const u = new URL(href, 'http://x');
   return { pathname: u.pathname, search: u.search };
+}
+
+/**
+ * The page's title in the browser's tab, history and a screen reader's announcement:
+ * "<what> · Shopdeck" ("Laser 1 — Running · Shopdeck", "Fleet · Shopdeck").
+ */
+export function usePageTitle(what: string): void {
+  useEffect(() => {
+    document.title = what ? `${what} · Shopdeck` : 'Shopdeck';
+  }, [what]);
+}
+
+/** A page whose own code does not name it (a family's page, "no page here"): titled around it. */
+export function Titled(props: { title: string; children: ReactNode }) {
+  usePageTitle(props.title);
+  return props.children;
 }
 
 /** An in-app link: a real `<a href>` (open in a new tab, copy, bookmark), navigated in place. */

@@ -18,12 +18,15 @@ export function Panel(props: {
   children: ReactNode;
   className?: string;
   testId?: string;
+  /** 1 when the panel's title is its page's heading (one h1 a page); 2 otherwise. */
+  level?: 1 | 2;
 }) {
+  const H = props.level === 1 ? 'h1' : 'h2';
   return (
     <section className={`ui-panel ${props.className ?? ''}`} data-testid={props.testId}>
       {(props.title || props.actions) && (
         <header>
-          {props.title ? <h2>{props.title}</h2> : <span />}
+          {props.title ? <H>{props.title}</H> : <span />}
           {props.actions && <div className="ui-row">{props.actions}</div>}
         </header>
       )}

@@ -8,7 +8,8 @@ import { resetSimulators } from './simulators';
  * violation fails the test; the full axe answer is attached to the report.
  *
  * Pages: the fleet, each family's machine page and each of its tabs (open mode: the supervisor
- * sees them all), the family pages (xTool "Find lasers"), the audit page and the login page; and
+ * sees them all), the family pages (xTool "Find lasers"), the audit page, the alarm centre, the
+ * history page, the wall screen, the top bar's open menu and the login page; and
  * the dialogs: a confirmation, a Duet message box, the blocking alarm.
  * Navigation is in-app. The simulators run in the server: each test starts from a fresh world.
  */
@@ -92,7 +93,8 @@ test.describe('accessibility (axe)', () => {
 
   test('family page: xTool "Find lasers"', async ({ page }, info) => {
     await page.goto('/');
-    await page.getByRole('navigation', { name: 'Main' }).getByRole('link', { name: 'Find lasers' }).click();
+    await page.getByTestId('topbar-menu-button').click();
+    await page.getByTestId('topbar-menu').getByRole('link', { name: 'Find lasers' }).click();
     await expect(page).toHaveURL(/\/xtool\/discover$/);
     await page.waitForTimeout(500);
     await audit(page, info, 'xtool discover');
@@ -100,10 +102,43 @@ test.describe('accessibility (axe)', () => {
 
   test('audit page', async ({ page }, info) => {
     await page.goto('/');
-    await page.getByRole('navigation', { name: 'Main' }).getByRole('link', { name: 'Audit' }).click();
+    await page.getByTestId('topbar-menu-button').click();
+    await page.getByTestId('topbar-menu').getByRole('link', { name: 'Audit log' }).click();
     await expect(page).toHaveURL(/\/audit$/);
     await page.waitForTimeout(700);
     await audit(page, info, 'audit');
+  });
+
+  test('alarm centre', async ({ page }, info) => {
+    await page.goto('/');
+    await page.getByRole('navigation', { name: 'Main' }).getByRole('link', { name: 'Alarms' }).click();
+    await expect(page).toHaveURL(/\/alarms$/);
+    await expect(page.getByRole('heading', { level: 1, name: 'Alarm centre' })).toBeVisible();
+    await page.waitForTimeout(700);
+    await audit(page, info, 'alarms');
+  });
+
+  test('history page', async ({ page }, info) => {
+    await page.goto('/');
+    await page.getByRole('navigation', { name: 'Main' }).getByRole('link', { name: 'History' }).click();
+    await expect(page).toHaveURL(/\/history$/);
+    await expect(page.getByRole('heading', { level: 1, name: 'Production history' })).toBeVisible();
+    await page.waitForTimeout(700);
+    await audit(page, info, 'history');
+  });
+
+  test('the top bar’s menu, open', async ({ page }, info) => {
+    await page.goto('/');
+    await page.getByTestId('topbar-menu-button').click();
+    await expect(page.getByTestId('topbar-menu').getByLabel('Theme')).toBeVisible();
+    await audit(page, info, 'top bar menu');
+  });
+
+  test('wall screen', async ({ page }, info) => {
+    await page.goto('/wall');
+    await expect(page).toHaveTitle('Wall screen · Shopdeck');
+    await page.waitForTimeout(700);
+    await audit(page, info, 'wall');
   });
 
   test('login page', async ({ page }, info) => {

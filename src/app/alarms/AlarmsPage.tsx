@@ -17,7 +17,7 @@ import {
   type Tone,
 } from '../../ui';
 import { setAlarmSound, useAlarmSoundSetting } from '../AlarmBanner';
-import { Link } from '../router';
+import { Link, usePageTitle } from '../router';
 import { acknowledgeAlarm, alarmFeed, type AlarmRecord } from './feed';
 import './alarms.css';
 
@@ -344,6 +344,7 @@ function FilterSelect<V extends string>(props: {
 }
 
 export function AlarmsPage() {
+  usePageTitle('Alarms');
   const records = useStore(alarmFeed, (s) => s.records);
   const error = useStore(alarmFeed, (s) => s.error);
   const machines = useStore(fleetStore, (s) => s.machines);
@@ -364,7 +365,7 @@ export function AlarmsPage() {
 
   return (
     <div className="alarms-page" data-testid="alarms-page">
-      <Panel title="Alarm centre">
+      <Panel title="Alarm centre" level={1}>
         <p className="small">
           Every alarm and message of every machine, recorded by the console whether or not a screen is open.
           An alarm clears itself when the machine clears it and stays in this list; a person acknowledges it.

@@ -15,6 +15,7 @@ import {
   type Tone,
 } from '../../ui';
 import { auditQuery, type AuditFilters } from '../auth/api';
+import { usePageTitle } from '../router';
 import './audit.css';
 
 /**
@@ -140,6 +141,7 @@ type Load =
   | { state: 'error'; message: string; status: number };
 
 export function AuditPage() {
+  usePageTitle('Audit log');
   const machines = useStore(fleetStore, (s) => s.machines);
   const [draft, setDraft] = useState<AuditFilters>({});
   const [filters, setFilters] = useState<AuditFilters>({});
@@ -200,6 +202,7 @@ export function AuditPage() {
     <div className="audit-page" data-testid="audit-page">
       <Panel
         title="Audit log"
+        level={1}
         actions={
           <>
             <Button onClick={refresh}>Refresh</Button>

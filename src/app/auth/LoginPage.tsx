@@ -4,6 +4,7 @@ import { authStore } from '../../fleet/auth';
 import { Badge, Button, Field, Notice, Panel } from '../../ui';
 import { AuthError, login, logout, sessionExtra } from './api';
 import { PinUnlock } from './UserControls';
+import { usePageTitle } from '../router';
 import './auth.css';
 
 /** Where to go after logging in: `?next=/m/laser-1`, same origin only. */
@@ -103,11 +104,12 @@ export function LoginPage() {
   const mode = useStore(authStore, (s) => s.mode);
   const user = useStore(authStore, (s) => s.user);
   const elevation = useStore(sessionExtra, (s) => s.elevation);
+  usePageTitle(mode === 'secured' && !user ? 'Sign in' : 'Session');
 
   if (mode === 'open') {
     return (
       <div className="auth-page">
-        <Panel title="No login needed" testId="login-open">
+        <Panel title="No login needed" level={1} testId="login-open">
           <Notice tone="warn" title="Open mode">
             There is no users file, so anyone on this network can control these machines. Add users with{' '}
             <code>npm run user -- add &lt;name&gt; --role operator</code> to require a login.
@@ -124,7 +126,7 @@ export function LoginPage() {
     const operatorName = elevation?.operator ?? user.name;
     return (
       <div className="auth-page">
-        <Panel title="Signed in" testId="login-signed-in">
+        <Panel title="Signed in" level={1} testId="login-signed-in">
           <p className="ui-row">
             <strong data-testid="login-user">{operatorName}</strong>
             <Badge tone="info" plain>
@@ -146,7 +148,7 @@ export function LoginPage() {
 
   return (
     <div className="auth-page">
-      <Panel title="Sign in to Shopdeck" testId="login-page">
+      <Panel title="Sign in to Shopdeck" level={1} testId="login-page">
         <p className="ui-muted">
           The machines on this console fire lasers and move steel: who you are decides what you may do here.
         </p>

@@ -3,10 +3,10 @@ import { useStore } from 'zustand';
 import { authStore } from '../../fleet/auth';
 import { useNow } from '../../fleet/react';
 import { Badge, Button, Dialog, Field, Notice } from '../../ui';
-import { elevate, endElevation, fetchSession, logout, sessionExtra } from './api';
+import { elevate, endElevation, fetchSession, sessionExtra } from './api';
 import './auth.css';
 
-/** Pieces of the user menu: the supervisor PIN unlock on an operator's tablet, and a whole menu. */
+/** The supervisor PIN unlock on an operator's tablet (the top bar's chip, the login page). */
 
 /** Elevation details come from `GET /api/session`: fetch them once if nobody has yet. */
 function useSessionExtra(): void {
@@ -117,11 +117,25 @@ export function PinUnlock(props: { compact?: boolean }) {
   if (mode !== 'secured' || !user) return null;
   if (elevation) {
     const left = Math.max(0, Math.round((elevation.until - now) / 1000));
+    const clock = `${Math.floor(left / 60)}:${String(left % 60).padStart(2, '0')}`;
+    // The top bar's chip: who and how long, in the width of a button (the words for a screen reader).
+    if (props.compact)
+      return (
+        <div className="ui-row auth-elevation compact" data-testid="elevation">
+          <Badge tone="paused">
+            <span className="sr-only">Unlocked by </span>
+            {elevation.supervisor} · {clock}
+            <span className="sr-only"> left</span>
+          </Badge>
+          <Button small onClick={() => void endElevation()}>
+            Lock
+          </Button>
+        </div>
+      );
     return (
       <div className="ui-row auth-elevation" data-testid="elevation">
         <Badge tone="paused">
-          Unlocked by {elevation.supervisor} · {Math.floor(left / 60)}:{String(left % 60).padStart(2, '0')}{' '}
-          left
+          Unlocked by {elevation.supervisor} · {clock} left
         </Badge>
         <Button small={props.compact} onClick={() => void endElevation()}>
           Lock now
@@ -137,30 +151,5 @@ export function PinUnlock(props: { compact?: boolean }) {
       </Button>
       {open && <PinDialog onDone={close} />}
     </>
-  );
-}
-
-/** The whole user menu: who, role, PIN unlock, sign out. Renders nothing in open mode. */
-export function AuthMenu() {
-  const mode = useStore(authStore, (s) => s.mode);
-  const user = useStore(authStore, (s) => s.user);
-  const elevation = useStore(sessionExtra, (s) => s.elevation);
-  if (mode !== 'secured') return null;
-  if (!user) return <a href="/login">Sign in</a>;
-  return (
-    <div className="ui-row user-menu" data-testid="user-menu">
-      <span>{elevation ? elevation.operator : user.name}</span>
-      <Badge
-        tone={user.role === 'supervisor' ? 'paused' : user.role === 'operator' ? 'info' : 'muted'}
-        plain
-        testId="user-role"
-      >
-        {user.role}
-      </Badge>
-      <PinUnlock compact />
-      <Button small onClick={() => void logout().then(() => location.assign('/login'))}>
-        Sign out
-      </Button>
-    </div>
   );
 }

@@ -1,5 +1,5 @@
 import './fleet-views.css';
-import { useId } from 'react';
+import { useId, useSyncExternalStore } from 'react';
 import { FAMILY_LABELS } from '../../controllers';
 import type { MachineInfo } from '../../fleet/types';
 import { STATE_CLASS_WORDS } from './arrange';
@@ -45,7 +45,40 @@ function Choice<K extends 'sort' | 'state' | 'family' | 'groupBy'>(props: {
   );
 }
 
-/** View, sort, filters and grouping of the fleet page. */
+const COARSE = '(pointer: coarse)';
+
+function subscribeCoarse(fn: () => void): () => void {
+  if (typeof matchMedia !== 'function') return () => undefined;
+  const q = matchMedia(COARSE);
+  q.addEventListener('change', fn);
+  return () => q.removeEventListener('change', fn);
+}
+
+/** A touch screen (a finger, not a mouse): the fleet's view controls fold into one. */
+function useCoarsePointer(): boolean {
+  return useSyncExternalStore(
+    subscribeCoarse,
+    () => typeof matchMedia === 'function' && matchMedia(COARSE).matches,
+    () => false,
+  );
+}
+
+/** The folded controls' button: the view in a few words ("Tiles · In alarm · by Name"). */
+export function viewWords(prefs: FleetPrefs, families: Record<string, string>): string {
+  const words = [prefs.view === 'grid' ? 'Tiles' : 'List'];
+  if (prefs.state !== 'all') words.push(STATE_CLASS_WORDS[prefs.state]);
+  if (prefs.family !== 'all') words.push(families[prefs.family] ?? prefs.family);
+  if (prefs.q.trim()) words.push(`“${prefs.q.trim()}”`);
+  if (prefs.sort !== 'file') words.push(`by ${SORT_WORDS[prefs.sort]}`);
+  if (prefs.groupBy !== 'none') words.push(`grouped by ${GROUP_WORDS[prefs.groupBy]}`);
+  return words.join(' · ');
+}
+
+/**
+ * View, sort, filters and grouping of the fleet page. On a touch screen they fold into one "View"
+ * control (a tablet's first screen is for the machines); how many machines a filter hides always
+ * shows.
+ */
 export function FleetToolbar(props: {
   prefs: FleetPrefs;
   update: (patch: Partial<FleetPrefs>) => void;
@@ -60,8 +93,9 @@ export function FleetToolbar(props: {
     if (k !== 'all') families[k] = FAMILY_LABELS[k];
   const filtered = prefs.state !== 'all' || prefs.family !== 'all' || prefs.q.trim() !== '';
   const common = { prefs, update };
-  return (
-    <div className="fleet-toolbar" role="group" aria-label="Fleet view" data-testid="fleet-toolbar">
+  const folded = useCoarsePointer();
+  const controls = (
+    <>
       <div className="fleet-view-switch" role="group" aria-label="View">
         {(['grid', 'list'] as const).map((v) => (
           <button
@@ -93,6 +127,26 @@ export function FleetToolbar(props: {
       <Choice name="family" label="Family" options={families} {...common} />
       <Choice name="sort" label="Sort" options={SORT_WORDS} {...common} />
       <Choice name="groupBy" label="Group" options={GROUP_WORDS} {...common} />
+    </>
+  );
+  return (
+    <div
+      className={`fleet-toolbar${folded ? ' folded' : ''}`}
+      role="group"
+      aria-label="Fleet view"
+      data-testid="fleet-toolbar"
+    >
+      {folded ? (
+        <details className="fleet-fold" data-testid="fleet-view-fold">
+          <summary className="ui-button secondary">
+            <span className="fleet-fold-label">View</span>
+            <span className="fleet-fold-words">{viewWords(prefs, families)}</span>
+          </summary>
+          <div className="fleet-fold-body">{controls}</div>
+        </details>
+      ) : (
+        controls
+      )}
       {filtered && (
         <div className="fleet-shown small" role="status" data-testid="fleet-shown">
           {props.shown} of {machines.length} shown{' '}

@@ -14,6 +14,7 @@ import { StopsSection } from './StopsSection';
 import { TimelineSection } from './TimelineSection';
 import { UtilisationSection } from './UtilisationSection';
 import { useQuery } from './useQuery';
+import { usePageTitle } from '../router';
 import './history.css';
 
 /**
@@ -21,6 +22,7 @@ import './history.css';
  * timeline per machine, utilisation, stop reasons and shift reports; the settings for supervisors.
  */
 export function HistoryPage() {
+  usePageTitle('History');
   const fleet = useStore(fleetStore, (s) => s.machines);
   const isSupervisor = useCan('supervisor');
   const [choice, setChoice] = useState<RangeChoice>({ kind: 'today' });
@@ -48,6 +50,7 @@ export function HistoryPage() {
     <div className="history-page" data-testid="history-page">
       <Panel
         title="Production history"
+        level={1}
         actions={
           <Button onClick={refresh} data-testid="history-refresh">
             Refresh

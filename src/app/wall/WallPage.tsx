@@ -11,6 +11,7 @@ import { Badge, ProgressBar, formatDuration, formatPercent, formatTime } from '.
 import { MachineAge } from '../Age';
 import { cardFields, LINK_TONE, shownState } from '../status';
 import { useRuntimesOf } from '../runtimes';
+import { usePageTitle } from '../router';
 import { alarmFeed, startAlarmFeed } from '../alarms/feed';
 import { sessionExtra } from '../auth/api';
 import {
@@ -33,6 +34,7 @@ export function WallPage() {
   const user = useStore(authStore, (s) => s.user);
   const signedOut = useStore(sessionExtra, (s) => s.signedOut);
   const { machines, status, error } = useStore(fleetStore);
+  usePageTitle('Wall screen');
   if (mode === 'secured' && !user)
     return (
       <WallMessage>

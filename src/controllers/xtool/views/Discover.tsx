@@ -30,6 +30,7 @@ export function Discover() {
     <div style={{ display: 'grid', gap: 14 }} data-testid="xtool-discover">
       <Panel
         title="Find xTool lasers"
+        level={1}
         actions={
           <Button
             variant="primary"
