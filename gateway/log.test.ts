@@ -270,9 +270,7 @@ describe('log injection (controller text in log lines)', () => {
       expect(lines.filter((l) => /^shopdeck: machine p1 online|^shopdeck: warn: FORGED/.test(l))).toEqual([]);
       if (json) {
         // The JSON is valid and gives the text back exactly.
-        expect((JSON.parse(started[0] ?? '') as { msg: string }).msg).toBe(
-          `p1: job started (${JOB})`,
-        );
+        expect((JSON.parse(started[0] ?? '') as { msg: string }).msg).toBe(`p1: job started (${JOB})`);
         expect((JSON.parse(alarm[0] ?? '') as { msg: string }).msg).toBe(`p1: alarm (${ALARM})`);
       } else {
         expect(started[0]).toBe(

@@ -32,9 +32,7 @@ describe('describeChange', () => {
     expect(describeChange(S('paused', 'a.nc'), S('running', 'a.nc'))).toEqual([
       { what: 'job resumed', detail: 'a.nc' },
     ]);
-    expect(describeChange(S('running', 'a.nc'), S('idle'))).toEqual([
-      { what: 'job ended', detail: 'a.nc' },
-    ]);
+    expect(describeChange(S('running', 'a.nc'), S('idle'))).toEqual([{ what: 'job ended', detail: 'a.nc' }]);
     expect(describeChange(S('running', 'a.nc'), S('alarm', 'a.nc', 'flame detected'))).toEqual([
       { what: 'alarm', detail: 'flame detected' },
     ]);
@@ -82,10 +80,7 @@ describe('MachineWatch', () => {
     expect(reads).toHaveLength(1);
     await vi.advanceTimersByTimeAsync(29_990);
     expect(reads).toHaveLength(4);
-    expect(events.map((e) => `${e.what} ${e.detail}`)).toEqual([
-      'job started part.nc',
-      'job ended part.nc',
-    ]);
+    expect(events.map((e) => `${e.what} ${e.detail}`)).toEqual(['job started part.nc', 'job ended part.nc']);
     w.stop();
     await vi.advanceTimersByTimeAsync(60_000);
     expect(reads).toHaveLength(4);
