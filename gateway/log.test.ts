@@ -270,13 +270,11 @@ describe('log injection (controller text in log lines)', () => {
       expect(lines.filter((l) => /^shopdeck: machine p1 online|^shopdeck: warn: FORGED/.test(l))).toEqual([]);
       if (json) {
         // The JSON is valid and gives the text back exactly.
-        expect((JSON.parse(started[0] ?? '') as { msg: string }).msg).toBe(
-          `p1: job started (started: ${JOB})`,
-        );
+        expect((JSON.parse(started[0] ?? '') as { msg: string }).msg).toBe(`p1: job started (${JOB})`);
         expect((JSON.parse(alarm[0] ?? '') as { msg: string }).msg).toBe(`p1: alarm (${ALARM})`);
       } else {
         expect(started[0]).toBe(
-          'shopdeck: p1: job started (started: part.gcode\\nshopdeck: machine p1 online\\r\\u001b[2K\\u001b]0;pwned\\u0007) (machine=p1 event="job started")',
+          'shopdeck: p1: job started (part.gcode\\nshopdeck: machine p1 online\\r\\u001b[2K\\u001b]0;pwned\\u0007) (machine=p1 event="job started")',
         );
         expect(alarm[0]).toContain('flame\\r\\nshopdeck: warn: FORGED alarm cleared\\u2028\\u009b2J\\u007f');
       }

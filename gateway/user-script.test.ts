@@ -1,4 +1,6 @@
 import { spawnSync } from 'node:child_process';
+import { writeFileSync } from 'node:fs';
+import os from 'node:os';
 import path from 'node:path';
 import { afterEach, describe, expect, it } from 'vitest';
 import { main, UsageError } from '../scripts/user';
@@ -14,6 +16,15 @@ afterEach(async () => {
 });
 
 const env = (dir: string): NodeJS.ProcessEnv => ({ SHOPDECK_DATA: dir, SHOPDECK_BCRYPT_COST: '4' });
+/** A machines file with `ids` (simulated xTools), named by SHOPDECK_MACHINES in the env returned. */
+function withMachines(dir: string, ids: string[]): NodeJS.ProcessEnv {
+  const file = path.join(dir, 'machines.json');
+  writeFileSync(
+    file,
+    JSON.stringify({ machines: ids.map((id) => ({ id, name: id, kind: 'xtool', simulated: true })) }),
+  );
+  return { ...env(dir), SHOPDECK_MACHINES: file };
+}
 const input = (...lines: string[]) => ({ line: (i: number) => Promise.resolve(lines[i] ?? '') });
 
 describe('npm run user', () => {
@@ -40,7 +51,7 @@ describe('npm run user', () => {
   it('adds users with bcrypt hashes, changes roles, audits, and the gateway uses them', async () => {
     const t = tempDir();
     cleanups.push(t.cleanup);
-    const e = env(t.dir);
+    const e = withMachines(t.dir, ['laser-1', 'p1']);
     await main(
       ['add', 'ana', '--role', 'operator', '--machines', 'laser-1,p1', '--password-stdin'],
       e,
@@ -74,11 +85,13 @@ describe('npm run user', () => {
     ).rejects.toThrow(/exists/);
     expect(await main(['role', 'ana', 'supervisor'], e)).toBe('ana: operator → supervisor');
 
+    // Who: the OS user who ran the script, not the user added; the user changed is in the detail.
     const audit = new AuditLog(t.dir).all();
-    expect(audit.map((x) => [x.type, x.user, x.role, x.source])).toEqual([
-      ['user-added', 'ana', 'operator', 'cli'],
-      ['user-added', 'sam', 'supervisor', 'cli'],
-      ['role-change', 'ana', 'supervisor', 'cli'],
+    const me = os.userInfo().username;
+    expect(audit.map((x) => [x.type, x.user, x.role, x.source, x.detail])).toEqual([
+      ['user-added', me, 'operator', 'cli', 'ana as operator for laser-1, p1'],
+      ['user-added', me, 'supervisor', 'cli', 'sam as supervisor'],
+      ['role-change', me, 'supervisor', 'cli', 'ana: operator → supervisor'],
     ]);
 
     const gw = await startGateway({
@@ -98,5 +111,66 @@ describe('npm run user', () => {
     await main(['remove', 'ana'], e);
     // Removed: the session ends at once.
     expect((await consoleFetch(`${gw.url}/api/machines`, { headers: { Cookie: cookie } })).status).toBe(401);
+  });
+
+  it('refuses a machine id the machines file lacks, naming the known ones, before asking a password', async () => {
+    const t = tempDir();
+    cleanups.push(t.cleanup);
+    const asked: string[] = [];
+    const io = {
+      line: () => Promise.resolve('ana-password-1'),
+      ask: (p: string) => {
+        asked.push(p);
+        return Promise.resolve('ana-password-1');
+      },
+    };
+    // The demo fleet (no machines file): the README's old example ids are not in it.
+    const demo = { ...env(t.dir), SHOPDECK_MACHINES: '' };
+    const cwd = process.cwd();
+    process.chdir(t.dir);
+    try {
+      await expect(
+        main(['add', 'bob', '--role', 'operator', '--machines', 'laser-1,demo-xtool'], demo, io),
+      ).rejects.toThrow(/no machine "laser-1" in the built-in demo fleet.*demo-xtool, .*demo-touchcut/);
+    } finally {
+      process.chdir(cwd);
+    }
+    expect(asked).toEqual([]);
+    const e = withMachines(t.dir, ['laser-1', 'p1']);
+    await expect(
+      main(['add', 'bob', '--role', 'operator', '--machines', 'laser-1,plasma-9', '--password-stdin'], e, io),
+    ).rejects.toThrow(/no machine "plasma-9" in .*machines\.json; its machines are laser-1, p1/);
+    expect(readUsers(path.join(t.dir, 'users.json'))).toBeNull();
+    await main(['add', 'bob', '--role', 'operator', '--machines', 'p1', '--password-stdin'], e, io);
+    await expect(main(['machines', 'bob', 'p1,p9'], e, io)).rejects.toThrow(/no machine "p9"/);
+    expect(await main(['machines', 'bob', 'laser-1'], e, io)).toBe('bob: machines laser-1');
+  });
+
+  it('asks again on the terminal after a short or mistyped password, and gives up after three tries', async () => {
+    const t = tempDir();
+    cleanups.push(t.cleanup);
+    const e = env(t.dir);
+    const answers = ['short', 'long-enough-1', 'long-enough-2', 'long-enough-1', 'long-enough-1'];
+    const asked: string[] = [];
+    const said: string[] = [];
+    const io = {
+      line: () => Promise.reject(new Error('not piped')),
+      ask: (p: string) => {
+        asked.push(p);
+        return Promise.resolve(answers.shift() ?? '');
+      },
+      say: (s: string) => said.push(s),
+    };
+    expect(await main(['add', 'cy', '--role', 'viewer'], e, io)).toContain('added cy (viewer)');
+    expect(asked).toEqual(['password: ', 'password: ', 'password again: ', 'password: ', 'password again: ']);
+    expect(said).toEqual([
+      'the password must have at least 8 characters: try again',
+      'the two passwords differ: try again',
+    ]);
+    const written = readUsers(path.join(t.dir, 'users.json'));
+    expect(written?.map((u) => u.name)).toEqual(['cy']);
+
+    const short = { ...io, ask: () => Promise.resolve('short'), say: () => undefined };
+    await expect(main(['add', 'di', '--role', 'viewer'], e, short)).rejects.toThrow(/at least 8/);
   });
 });

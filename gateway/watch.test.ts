@@ -24,22 +24,20 @@ const S = (
 describe('describeChange', () => {
   it('names job starts, pauses, resumes and ends, and alarms raised and cleared', () => {
     expect(describeChange(S('idle'), S('running', 'a.nc'))).toEqual([
-      { what: 'job started', detail: 'started: a.nc' },
+      { what: 'job started', detail: 'a.nc' },
     ]);
     expect(describeChange(S('running', 'a.nc'), S('paused', 'a.nc'))).toEqual([
-      { what: 'job paused', detail: 'paused: a.nc' },
+      { what: 'job paused', detail: 'a.nc' },
     ]);
     expect(describeChange(S('paused', 'a.nc'), S('running', 'a.nc'))).toEqual([
-      { what: 'job resumed', detail: 'resumed: a.nc' },
+      { what: 'job resumed', detail: 'a.nc' },
     ]);
-    expect(describeChange(S('running', 'a.nc'), S('idle'))).toEqual([
-      { what: 'job ended', detail: 'ended: a.nc' },
-    ]);
+    expect(describeChange(S('running', 'a.nc'), S('idle'))).toEqual([{ what: 'job ended', detail: 'a.nc' }]);
     expect(describeChange(S('running', 'a.nc'), S('alarm', 'a.nc', 'flame detected'))).toEqual([
       { what: 'alarm', detail: 'flame detected' },
     ]);
     expect(describeChange(S('alarm', null, 'flame detected'), S('idle'))).toEqual([
-      { what: 'alarm cleared', detail: 'cleared: flame detected' },
+      { what: 'alarm cleared', detail: 'flame detected' },
     ]);
     expect(describeChange(S('running', 'a.nc'), S('running', 'a.nc'))).toEqual([]);
     // Not knowing is not an event.
@@ -82,10 +80,7 @@ describe('MachineWatch', () => {
     expect(reads).toHaveLength(1);
     await vi.advanceTimersByTimeAsync(29_990);
     expect(reads).toHaveLength(4);
-    expect(events.map((e) => `${e.what} ${e.detail}`)).toEqual([
-      'job started started: part.nc',
-      'job ended ended: part.nc',
-    ]);
+    expect(events.map((e) => `${e.what} ${e.detail}`)).toEqual(['job started part.nc', 'job ended part.nc']);
     w.stop();
     await vi.advanceTimersByTimeAsync(60_000);
     expect(reads).toHaveLength(4);

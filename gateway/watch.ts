@@ -43,20 +43,22 @@ export function describeChange(
   const out: Array<{ what: string; detail: string }> = [];
   const job = next.job ?? prev.job;
   const named = job ? `: ${job}` : '';
+  // The detail says what `what` does not (the job's name, the alarm), never the same word again:
+  // the log and the audit page show "job started (a.nc)", not "job started started: a.nc".
+  const jobName = job ?? '';
   if (prev.state !== next.state && next.state !== 'unknown') {
     const was = prev.state;
     if (next.state === 'offline' && (was === 'running' || was === 'paused'))
-      out.push({ what: 'offline during a job', detail: `went offline while ${was}${named}` });
-    else if (next.state === 'offline') out.push({ what: 'offline', detail: 'went offline' });
-    else if (next.state === 'running' && was === 'paused')
-      out.push({ what: 'job resumed', detail: `resumed${named}` });
-    else if (next.state === 'running') out.push({ what: 'job started', detail: `started${named}` });
-    else if (next.state === 'paused') out.push({ what: 'job paused', detail: `paused${named}` });
+      out.push({ what: 'offline during a job', detail: `was ${was}${named}` });
+    else if (next.state === 'offline') out.push({ what: 'offline', detail: '' });
+    else if (next.state === 'running' && was === 'paused') out.push({ what: 'job resumed', detail: jobName });
+    else if (next.state === 'running') out.push({ what: 'job started', detail: jobName });
+    else if (next.state === 'paused') out.push({ what: 'job paused', detail: jobName });
     else if (next.state === 'idle' && (was === 'running' || was === 'paused'))
-      out.push({ what: 'job ended', detail: `ended${prev.job ? `: ${prev.job}` : named}` });
+      out.push({ what: 'job ended', detail: prev.job ?? jobName });
   }
   if (next.alarm && next.alarm !== prev.alarm) out.push({ what: 'alarm', detail: next.alarm });
-  else if (!next.alarm && prev.alarm) out.push({ what: 'alarm cleared', detail: `cleared: ${prev.alarm}` });
+  else if (!next.alarm && prev.alarm) out.push({ what: 'alarm cleared', detail: prev.alarm });
   if (next.unread && !prev.unread) out.push({ what: 'not read by the server', detail: next.unread });
   else if (!next.unread && prev.unread) out.push({ what: 'read again', detail: `was: ${prev.unread}` });
   return out;

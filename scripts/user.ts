@@ -1,5 +1,7 @@
+import { readFileSync } from 'node:fs';
 import os from 'node:os';
 import { AuditLog } from '../gateway/audit';
+import { loadMachines, MachinesFileError } from '../gateway/machines';
 import {
   DEFAULT_COST,
   PIN_RULE,
@@ -62,7 +64,37 @@ function parseRole(v: string | undefined): Role {
   return v as Role;
 }
 
-function parseMachines(v: string | undefined): string[] | null {
+/** The machine ids a user may be limited to: those of the machines file the console would load. */
+export function knownMachines(env: NodeJS.ProcessEnv, cwd: string): { where: string; ids: string[] } {
+  try {
+    const c = loadMachines({ env, cwd });
+    return {
+      where: c.file ?? 'the built-in demo fleet (no machines file)',
+      ids: c.machines.map((m) => m.id),
+    };
+  } catch (e) {
+    // A machines file the server would refuse for another reason (an `env:NAME` not set in this
+    // shell, say) still names its machines.
+    if (e instanceof MachinesFileError) {
+      const file = e.file;
+      try {
+        const data = JSON.parse(readFileSync(file, 'utf8')) as { machines?: Array<{ id?: unknown }> };
+        const ids = (data.machines ?? [])
+          .map((m) => m.id)
+          .filter((id): id is string => typeof id === 'string');
+        return { where: file, ids };
+      } catch {
+        /* unreadable: said below */
+      }
+    }
+    throw new UsageError(`cannot read the machines file: ${e instanceof Error ? e.message : String(e)}`);
+  }
+}
+
+function parseMachines(
+  v: string | undefined,
+  known: () => { where: string; ids: string[] },
+): string[] | null {
   if (v === undefined || v === 'all') return null;
   const list = v
     .split(',')
@@ -70,6 +102,13 @@ function parseMachines(v: string | undefined): string[] | null {
     .filter(Boolean);
   for (const id of list) if (!MACHINE_ID.test(id)) throw new UsageError(`"${id}" is not a machine id`);
   if (!list.length) throw new UsageError('--machines: give at least one machine id, or "all"');
+  const { where, ids } = known();
+  const unknown = list.filter((id) => !ids.includes(id));
+  if (unknown.length)
+    throw new UsageError(
+      `no machine ${unknown.map((id) => `"${id}"`).join(', ')} in ${where}; ` +
+        `its machines are ${ids.length ? ids.join(', ') : '(none)'}, or give "all"`,
+    );
   return list;
 }
 
@@ -121,9 +160,23 @@ function askHidden(prompt: string): Promise<string> {
 export interface UserIo {
   /** Line `index` of the piped input (--password-stdin). */
   line(index: number): Promise<string>;
+  /** Asks on the terminal without echo (default: the process's terminal). */
+  ask?(prompt: string): Promise<string>;
+  /** A line for the person at the terminal (default: standard error). */
+  say?(text: string): void;
 }
 
 const processIo: UserIo = { line: stdinLine };
+
+/** Wrong answers on the terminal before the script gives up. */
+export const SECRET_TRIES = 3;
+
+function secretProblem(what: 'password' | 'PIN', v: string): string | null {
+  if (what === 'password' && v.length < 8) return 'the password must have at least 8 characters';
+  if (what === 'PIN' && !PIN_RULE.test(v))
+    return `${PIN_RULE_TEXT} (${/^\d*$/.test(v) ? `${v.length} given` : 'digits only'})`;
+  return null;
+}
 
 async function readSecret(
   what: 'password' | 'PIN',
@@ -131,18 +184,23 @@ async function readSecret(
   line: number,
   io: UserIo,
 ): Promise<string> {
-  let v: string;
-  if (fromStdin) v = await io.line(line);
-  else {
-    v = await askHidden(`${what}: `);
-    const again = await askHidden(`${what} again: `);
-    if (again !== v) throw new UsageError(`the two ${what}s differ`);
+  if (fromStdin) {
+    const v = await io.line(line);
+    const problem = secretProblem(what, v);
+    if (problem) throw new UsageError(problem);
+    return v;
   }
-  if (what === 'password' && v.length < 8)
-    throw new UsageError('the password must have at least 8 characters');
-  if (what === 'PIN' && !PIN_RULE.test(v))
-    throw new UsageError(`${PIN_RULE_TEXT} (${/^\d*$/.test(v) ? `${v.length} given` : 'digits only'})`);
-  return v;
+  // On a terminal a short or mistyped secret is asked again, not the end of the run.
+  const ask = io.ask ?? askHidden;
+  const say = io.say ?? ((t: string) => void process.stderr.write(`${t}\n`));
+  for (let tries = 1; ; tries++) {
+    const v = await ask(`${what}: `);
+    let problem = secretProblem(what, v);
+    if (!problem && (await ask(`${what} again: `)) !== v) problem = `the two ${what}s differ`;
+    if (!problem) return v;
+    if (tries >= SECRET_TRIES) throw new UsageError(problem);
+    say(`${problem}: try again`);
+  }
 }
 
 export async function main(
@@ -158,12 +216,15 @@ export async function main(
   const cost = Number(env.SHOPDECK_BCRYPT_COST ?? DEFAULT_COST);
   if (!Number.isInteger(cost) || cost < 4 || cost > 31)
     throw new UsageError('SHOPDECK_BCRYPT_COST must be a whole number from 4 to 31');
-  const by = `${os.userInfo().username} (command line)`;
+  // Who made a change from the command line: the OS user running the script (the audit page adds
+  // "(server console)"); the user changed is named in the entry's detail.
+  const by = os.userInfo().username;
   const fromStdin = flag(args, '--password-stdin');
   const withPin = flag(args, '--pin');
   const role = option(args, '--role');
   const machines = option(args, '--machines');
   const [command, name, extra] = args;
+  const known = () => knownMachines(env, cwd);
   // What is on disk now: for the list, and to refuse at once (before asking for a password)
   // what cannot be done. Every change is then made under the users file's lock on a fresh read
   // (`updateUsers`: another run may have changed the file meanwhile) and checked again there.
@@ -187,11 +248,10 @@ export async function main(
   };
   const log = (
     type: 'user-added' | 'user-removed' | 'role-change' | 'password-change',
-    user: string,
     detail: string,
     r?: Role,
   ): void => {
-    audit.append({ type, result: 'ok', user, source: 'cli', detail: `${detail}, by ${by}`, role: r });
+    audit.append({ type, result: 'ok', user: by, source: 'cli', detail, role: r });
   };
   const exists = (list: UserRecord[], n: string): void => {
     if (list.some((u) => u.name === n))
@@ -204,12 +264,13 @@ export async function main(
         throw new UsageError('add: give a user name (letters, digits, . _ @ -)');
       exists(users, name);
       const r = parseRole(role);
+      const machineList = parseMachines(machines, known);
       const password = await readSecret('password', fromStdin, 0, io);
       const pin = withPin ? await readSecret('PIN', fromStdin, 1, io) : null;
       const u: UserRecord = {
         name,
         role: r,
-        machines: parseMachines(machines),
+        machines: machineList,
         passwordHash: await hashSecret(password, cost),
         pinHash: pin ? await hashSecret(pin, cost) : null,
       };
@@ -217,7 +278,7 @@ export async function main(
         exists(list, name);
         return [...list, u];
       });
-      log('user-added', name, `added as ${r}${u.machines ? ` for ${u.machines.join(', ')}` : ''}`, r);
+      log('user-added', `${name} as ${r}${u.machines ? ` for ${u.machines.join(', ')}` : ''}`, r);
       return `added ${name} (${r}) to ${file}${after.length === 1 ? '\naccess control is on: the console no longer runs open' : ''}`;
     }
     case 'role': {
@@ -228,16 +289,16 @@ export async function main(
         before = x.role;
         x.role = r;
       });
-      log('role-change', u.name, `${before} → ${r}`, r);
+      log('role-change', `${u.name}: ${before} → ${r}`, r);
       return `${u.name}: ${before} → ${r}`;
     }
     case 'machines': {
       find(name);
-      const list = parseMachines(extra ?? machines ?? 'all');
+      const list = parseMachines(extra ?? machines ?? 'all', known);
       const u = await change(name, (x) => {
         x.machines = list;
       });
-      log('role-change', u.name, `machines: ${list ? list.join(', ') : 'all'}`, u.role);
+      log('role-change', `${u.name}: machines ${list ? list.join(', ') : 'all'}`, u.role);
       return `${u.name}: machines ${list ? list.join(', ') : 'all'}`;
     }
     case 'passwd': {
@@ -246,7 +307,7 @@ export async function main(
       const u = await change(name, (x) => {
         x.passwordHash = hash;
       });
-      log('password-change', u.name, 'password changed');
+      log('password-change', `${u.name}: password changed`);
       return `${u.name}: password changed`;
     }
     case 'pin': {
@@ -255,7 +316,7 @@ export async function main(
       const u = await change(name, (x) => {
         x.pinHash = hash;
       });
-      log('password-change', u.name, 'PIN set');
+      log('password-change', `${u.name}: PIN set`);
       return `${u.name}: PIN set${u.role === 'supervisor' ? '' : ' (only a supervisor PIN unlocks a tablet)'}`;
     }
     case 'remove': {
@@ -267,7 +328,7 @@ export async function main(
         return list.filter((x) => x !== u);
       });
       const u = removed ?? find(name);
-      log('user-removed', u.name, 'removed', u.role);
+      log('user-removed', `${u.name} (was ${u.role})`, u.role);
       return `removed ${u.name}${after.length === 0 ? ' (no users left: nobody can log in; delete the file to run open)' : ''}`;
     }
     case 'list': {

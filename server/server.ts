@@ -577,9 +577,9 @@ export function createShopdeckServer(opts: ShopdeckServerOptions): ShopdeckServe
           ? `${users.count} from ${users.file}`
           : `${users.file}: ${users.error}`;
     const machinesText = `${machines.machines.length} from ${machines.file ?? 'the built-in demo fleet (no machines file)'}`;
+    // The URL to open comes last (after the details), where a newcomer's eye lands.
     const lines = [
       `Shopdeck is serving ${distDir}`,
-      ...info.urls.map((u) => `  ➜ ${u}`),
       `  machines: ${machinesText}`,
       `  users:    ${usersText}`,
     ];
@@ -600,6 +600,7 @@ export function createShopdeckServer(opts: ShopdeckServerOptions): ShopdeckServe
       for (const n of tlsNotes) lines.push(`  note:     ${n}`);
     }
     lines.push(`  data:     ${dataDir}`);
+    lines.push(`Open the console at:`, ...info.urls.map((u) => `  ➜ ${u}`));
     log.banner('listening', lines.join('\n'), {
       urls: info.urls,
       port: info.port,

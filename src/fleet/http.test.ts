@@ -4,7 +4,7 @@ import { afterAll, afterEach, beforeAll, describe, expect, it, vi } from 'vitest
 import { z } from 'zod/mini';
 import { describeError, LinkError } from './errors';
 import { controlledBody, installFakeFetch } from './fake-fetch.test-util';
-import { HttpClient } from './http';
+import { connectionLost, HttpClient, signInWords } from './http';
 
 const server = setupServer();
 beforeAll(() => server.listen({ onUnhandledRequest: 'error' }));
@@ -301,5 +301,30 @@ describe('the gateway’s own failures (issue 15)', () => {
       'cannot reach the controller of acc-laser',
     );
     expect(describeError(new Error('plain words'))).toBe('plain words');
+  });
+});
+
+describe('words that reach people', () => {
+  it('leaves out the browser\'s own "Failed to fetch" (and its kin), keeps another reason', () => {
+    for (const why of ['Failed to fetch', 'NetworkError when attempting to fetch resource.', 'Load failed'])
+      expect(connectionLost(why)).toBe('No answer: the connection to the console server broke');
+    expect(connectionLost('socket hang up')).toBe(
+      'No answer: the connection to the console server broke (socket hang up)',
+    );
+  });
+
+  it('says "sign in" as the sign-in screen does, never the server\'s "log in first"', async () => {
+    expect(signInWords('log in first')).toBe('You are not signed in: sign in to see this machine.');
+    expect(signInWords('your session expired: log in again')).toMatch(/^Your sign-in has expired/);
+    server.use(
+      http.get(`${base}/progress`, () =>
+        HttpResponse.json(
+          { error: 'log in first', needs: 'viewer', login: true },
+          { status: 401, headers: { 'X-Shopdeck-Gateway': 'error' } },
+        ),
+      ),
+    );
+    const e = await caught(new HttpClient({ machineId: 'm1' }).json({ path: '/progress' }, Progress));
+    expect(e.message).toBe('You are not signed in: sign in to see this machine.');
   });
 });

@@ -301,13 +301,26 @@ function gatewayFailure(status: number, headers: Headers, body: unknown): LinkEr
   // The console's own 401: this page's session is gone (a controller's 401 is never marked).
   if (marked && status === 401) sessionGone();
   const said = rec && typeof rec.error === 'string' ? rec.error.trim() : '';
-  const words = said || `the console server answered HTTP ${status}`;
+  const words =
+    status === 401 && rec?.login === true
+      ? signInWords(said)
+      : said || `the console server answered HTTP ${status}`;
   const kind = status === 504 ? 'timeout' : status >= 500 ? 'network' : 'http';
   return new LinkError(kind, words.slice(0, 300), {
     status,
     fromGateway: true,
     notConfirmed: rec?.notConfirmed === true,
   });
+}
+
+/**
+ * The console server's "sign in" answer (401 with `login: true`) in the words of the page's own
+ * sign-in screen, not the server's terse API text ("log in first").
+ */
+export function signInWords(said: string): string {
+  return /expired/i.test(said)
+    ? 'Your sign-in has expired: sign in again to see this machine.'
+    : 'You are not signed in: sign in to see this machine.';
 }
 
 /** A controller's HTTP error in words: its own message when its body has one, never a JSON dump. */
@@ -402,8 +415,17 @@ export function uploadWithProgress(opts: {
 /**
  * The words for a request that got no answer at all: the page could not reach the console server,
  * or the connection broke (the console server answers for the controller itself when it cannot
- * reach it: those words come from it). The browser's own text ("Failed to fetch") only in brackets.
+ * reach it: those words come from it). The browser's own "no connection" text ("Failed to fetch")
+ * is left out; another reason is kept in brackets.
  */
 export function connectionLost(why: string): string {
-  return `No answer: the connection to the console server broke${why ? ` (${why})` : ''}`;
+  const said = BROWSER_NETWORK_WORDS.test(why.trim()) ? '' : why.trim();
+  return `No answer: the connection to the console server broke${said ? ` (${said})` : ''}`;
 }
+
+/**
+ * What browsers say for "no connection" (Chrome, Firefox, Safari): nothing a person at the
+ * machine can use, so it is left out; any other reason is kept in brackets.
+ */
+const BROWSER_NETWORK_WORDS =
+  /^(Failed to fetch|NetworkError when attempting to fetch resource\.?|Load failed|Network request failed|The network connection was lost\.?)$/i;

@@ -1,5 +1,5 @@
 import type { ReactNode } from 'react';
-import { rangeText, type FormNode, type FormValue, type RatioValue } from './ir';
+import { noLimitText, rangeText, type FormNode, type FormValue, type RatioValue } from './ir';
 import type { FormModel } from './model';
 
 /**
@@ -141,7 +141,8 @@ export function fieldControl(
 
 function numText(v: FormValue | undefined | number | string): string {
   if (v === undefined) return '';
-  if (typeof v === 'number') return String(v);
+  // Prunt's ±1E100 ("no limit") in words, not "1e+100"; the words are read back as the number.
+  if (typeof v === 'number') return noLimitText(v) ?? String(v);
   if (typeof v === 'string') return v;
   return '';
 }

@@ -140,10 +140,23 @@ export function valuesEqual(a: FormValue | undefined, b: FormValue | undefined):
 }
 
 /** Parse a number the user typed (or a number): NaN when it is not one. */
+/**
+ * A value at Prunt's "no limit" (±1E100) in words: "no limit", "no limit (negative)"; null for
+ * any other number. The form shows these words in the field, and `toNumber` reads them back.
+ */
+export function noLimitText(n: number): string | null {
+  if (!Number.isFinite(n) || Math.abs(n) < NO_LIMIT) return null;
+  return n > 0 ? 'no limit' : 'no limit (negative)';
+}
+
+const NO_LIMIT_WORDS = /^(-|−)?\s*no limit(\s*\(negative\))?$/i;
+
 export function toNumber(v: number | string): number {
   if (typeof v === 'number') return v;
   const t = v.trim();
   if (t === '') return NaN;
+  const words = NO_LIMIT_WORDS.exec(t);
+  if (words) return words[1] || words[2] ? -1e100 : 1e100;
   return Number(t);
 }
 

@@ -1,6 +1,6 @@
 import { describe, expect, it } from 'vitest';
 import type { FormNode, FormSchema } from './ir';
-import { rangeText } from './ir';
+import { noLimitText, rangeText, toNumber } from './ir';
 import { FormModel } from './model';
 import { memoryDraftStorage } from './storage';
 import { validateValue } from './validate';
@@ -245,5 +245,18 @@ describe('FormModel', () => {
     expect(after.serverErrors).toBe(before.serverErrors);
     expect(after.localErrors).toBe(before.localErrors); // still valid: same object, no badge re-render
     expect(after.edits['Motor$A$Current']).toBe(before.edits['Motor$A$Current']);
+  });
+});
+
+describe('Prunt\'s "no limit" values (±1E100)', () => {
+  it('are words, not 1e+100, and the words read back as the number', () => {
+    expect(noLimitText(1e100)).toBe('no limit');
+    expect(noLimitText(-1e100)).toBe('no limit (negative)');
+    expect(noLimitText(3)).toBeNull();
+    expect(toNumber('no limit')).toBe(1e100);
+    expect(toNumber(' No limit ')).toBe(1e100);
+    expect(toNumber('no limit (negative)')).toBe(-1e100);
+    expect(toNumber('2.5')).toBe(2.5);
+    expect(rangeText(-1e100, 1e100)).toBe('no limit');
   });
 });

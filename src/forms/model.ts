@@ -1,5 +1,6 @@
 import { createStore, type StoreApi } from 'zustand/vanilla';
 import {
+  noLimitText,
   breadcrumb,
   defaultOf,
   isValueNode,
@@ -401,6 +402,6 @@ export function fmt(v: FormValue | undefined): string {
   if (v === undefined) return '(none)';
   if (typeof v === 'object') return `${v.numerator} : ${v.denominator}`;
   if (typeof v === 'boolean') return v ? 'on' : 'off';
-  if (typeof v === 'number') return Math.abs(v) >= 1e99 ? (v > 0 ? 'no limit' : '-no limit') : String(v);
+  if (typeof v === 'number') return noLimitText(v) ?? String(v);
   return v === '' ? '(empty)' : v;
 }

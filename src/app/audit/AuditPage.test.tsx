@@ -2,7 +2,7 @@
 import { act, cleanup, fireEvent, render, screen, within } from '@testing-library/react';
 import { afterEach, beforeEach, describe, expect, it, vi } from 'vitest';
 import { fleetStore } from '../../fleet/fleet';
-import { AuditPage, PAGE_SIZE } from './AuditPage';
+import { AuditPage, detailAfter, PAGE_SIZE } from './AuditPage';
 
 function json(body: unknown, status = 200): Response {
   return new Response(JSON.stringify(body), { status, headers: { 'Content-Type': 'application/json' } });
@@ -73,7 +73,7 @@ describe('AuditPage', () => {
     expect(String(fetchMock.mock.calls[0]![0])).toBe(`/api/audit?offset=0&limit=${PAGE_SIZE}`);
     const rows = within(screen.getByTestId('audit-table')).getAllByRole('row').slice(1);
     expect(rows).toHaveLength(3);
-    expect(rows[0]!.textContent).toMatch(/vera.*laser-1.*stop the job.*refused.*needs operator/);
+    expect(rows[0]!.textContent).toMatch(/vera.*Laser 1.*stop the job.*refused.*needs operator/);
     expect(rows[1]!.textContent).toMatch(
       /sam on otto’s tablet.*pause the job \(xtool\.pause\).*ok.*HTTP 200/,
     );
@@ -109,5 +109,17 @@ describe('AuditPage', () => {
     await flush();
     expect(screen.getByText('Supervisors only')).toBeTruthy();
     expect(screen.getByText('the audit log is for supervisors')).toBeTruthy();
+  });
+});
+
+describe("the audit page's words", () => {
+  it("never repeats the label's word in the detail (entries written before the rewording too)", () => {
+    expect(detailAfter('job started', 'started: a.nc')).toBe('a.nc');
+    expect(detailAfter('job started', 'a.nc')).toBe('a.nc');
+    expect(detailAfter('User added', 'added as operator, by root (command line)')).toBe(
+      'as operator, by root (command line)',
+    );
+    expect(detailAfter('alarm cleared', 'cleared: flame')).toBe('flame');
+    expect(detailAfter('job started', 'startedXY.nc')).toBe('startedXY.nc');
   });
 });

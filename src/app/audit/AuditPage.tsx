@@ -1,4 +1,4 @@
-import { useCallback, useEffect, useState } from 'react';
+import { useCallback, useEffect, useMemo, useState } from 'react';
 import { z } from 'zod/mini';
 import { useStore } from 'zustand';
 import { fleetStore } from '../../fleet/fleet';
@@ -69,18 +69,35 @@ const TYPE_WORDS: Record<string, string> = {
 
 const RESULT_TONE: Record<string, Tone> = { ok: 'ok', error: 'bad', refused: 'warn', failed: 'bad' };
 
+/**
+ * An entry's detail without a repeat of the label's last word: entries written before the
+ * details were reworded said "job started" + "started: a.nc" and "User added" + "added as …".
+ */
+export function detailAfter(label: string, detail: string): string {
+  const last = (label.trim().split(/\s+/).pop() ?? '').toLowerCase();
+  const d = detail.trim();
+  if (last && d.toLowerCase().startsWith(last) && /^[\s:,]|^$/.test(d.slice(last.length)))
+    return d.slice(last.length).replace(/^[\s:,]+/, '');
+  return d;
+}
+
 function what(e: AuditRow): string {
-  const parts = [e.label ?? TYPE_WORDS[e.type] ?? e.type];
+  const label = e.label ?? TYPE_WORDS[e.type] ?? e.type;
+  const parts = [label];
   if (e.commandId) parts.push(`(${e.commandId})`);
   if (e.clientCommand && e.clientCommand !== e.commandId) parts.push(`(page: ${e.clientCommand})`);
   if (
     e.type === 'role-change' ||
     e.type === 'user-added' ||
+    e.type === 'user-removed' ||
+    e.type === 'password-change' ||
     e.type === 'machine' ||
     e.type === 'alarm-ack' ||
     e.type === 'settings'
-  )
-    parts.push(e.detail ?? '');
+  ) {
+    const d = detailAfter(label, e.detail ?? '');
+    if (d) parts.push(`(${d})`);
+  }
   return parts.filter(Boolean).join(' ');
 }
 
@@ -93,47 +110,56 @@ function outcome(e: AuditRow): string {
   return bits.join(' · ');
 }
 
-const COLUMNS: Column<AuditRow>[] = [
-  {
-    key: 'time',
-    label: 'Time',
-    render: (e) => <span className="audit-time">{formatDateTime(Date.parse(e.time))}</span>,
-  },
-  {
-    key: 'user',
-    label: 'Who',
-    render: (e) => (
-      <span>
-        {e.user}
-        {e.onBehalfOf && <span className="ui-muted"> on {e.onBehalfOf}’s tablet</span>}
-        {e.source === 'client' && <span className="ui-muted"> (simulated, from the browser)</span>}
-        {e.source === 'cli' && <span className="ui-muted"> (command line)</span>}
-      </span>
-    ),
-  },
-  { key: 'machine', label: 'Machine', render: (e) => e.machine ?? '—' },
-  { key: 'what', label: 'What', render: (e) => what(e) },
-  {
-    key: 'request',
-    label: 'Request',
-    render: (e) =>
-      e.method || e.path ? (
-        <code className="audit-path">{`${e.method ?? ''} ${e.path ?? ''}`.trim()}</code>
-      ) : (
-        '—'
+/** The table's columns; `names`: machine id → the name the machines file gives it. */
+function columns(names: ReadonlyMap<string, string>): Column<AuditRow>[] {
+  return [
+    {
+      key: 'time',
+      label: 'Time',
+      render: (e) => <span className="audit-time">{formatDateTime(Date.parse(e.time))}</span>,
+    },
+    {
+      key: 'user',
+      label: 'Who',
+      render: (e) => (
+        <span>
+          {e.user}
+          {e.onBehalfOf && <span className="ui-muted"> on {e.onBehalfOf}’s tablet</span>}
+          {e.source === 'client' && <span className="ui-muted"> (simulated, from the browser)</span>}
+          {e.source === 'cli' && <span className="ui-muted"> (server console)</span>}
+        </span>
       ),
-  },
-  {
-    key: 'result',
-    label: 'Result',
-    render: (e) => (
-      <span className="audit-result">
-        <Badge tone={RESULT_TONE[e.result] ?? 'muted'}>{e.result}</Badge>{' '}
-        <span className="ui-muted">{outcome(e)}</span>
-      </span>
-    ),
-  },
-];
+    },
+    {
+      key: 'machine',
+      label: 'Machine',
+      // The machine's name; the id only for a machine no longer in the machines file.
+      render: (e) =>
+        e.machine === undefined ? '—' : <span title={e.machine}>{names.get(e.machine) ?? e.machine}</span>,
+    },
+    { key: 'what', label: 'What', render: (e) => what(e) },
+    {
+      key: 'request',
+      label: 'Request',
+      render: (e) =>
+        e.method || e.path ? (
+          <code className="audit-path">{`${e.method ?? ''} ${e.path ?? ''}`.trim()}</code>
+        ) : (
+          '—'
+        ),
+    },
+    {
+      key: 'result',
+      label: 'Result',
+      render: (e) => (
+        <span className="audit-result">
+          <Badge tone={RESULT_TONE[e.result] ?? 'muted'}>{e.result}</Badge>{' '}
+          <span className="ui-muted">{outcome(e)}</span>
+        </span>
+      ),
+    },
+  ];
+}
 
 type Load =
   | { state: 'loading' }
@@ -143,6 +169,7 @@ type Load =
 export function AuditPage() {
   usePageTitle('Audit log');
   const machines = useStore(fleetStore, (s) => s.machines);
+  const cols = useMemo(() => columns(new Map(machines.map((m) => [m.id, m.name]))), [machines]);
   const [draft, setDraft] = useState<AuditFilters>({});
   const [filters, setFilters] = useState<AuditFilters>({});
   const [offset, setOffset] = useState(0);
@@ -310,7 +337,7 @@ export function AuditPage() {
         {load.state === 'ok' && (
           <>
             <DataTable
-              columns={COLUMNS}
+              columns={cols}
               rows={load.entries}
               rowKey={(e, i) => `${e.time}-${i + offset}`}
               empty="Nothing in the audit log matches these filters."

@@ -4,7 +4,7 @@ import { useNow, useStoreSelect } from '../../../fleet/react';
 import { Button, DataTable, EmptyState, Notice, Panel, formatAge } from '../../../ui';
 import type { TouchcutSession } from '../session';
 import { unitLabel, type Axis, type IoPoint } from '../wire';
-import { num, READ_ONLY, UnitsPicker, YesNo } from './common';
+import { axisName, num, READ_ONLY, UnitsPicker, YesNo } from './common';
 
 const SECTIONS = [
   { id: 'axes', label: 'Axes', field: 'axes.*' },
@@ -57,7 +57,7 @@ export function MonitorView({ session }: TabProps<TouchcutSession>) {
             .filter((a) => a.io.din.length + a.io.dout.length + a.io.ain.length + a.io.aout.length > 0)
             .map((a, i) => (
               <details key={`${a.name ?? ''}-${i}`}>
-                <summary>I/O of {a.name ?? `axis ${a.index ?? i + 1}`}</summary>
+                <summary>I/O of the {axisName(a.name, a.index ?? i + 1).toLowerCase()}</summary>
                 {(['din', 'dout', 'ain', 'aout'] as const).map((g) =>
                   a.io[g].length > 0 ? (
                     <IoTable key={g} points={a.io[g]} analogue={g === 'ain' || g === 'aout'} units={units} />
@@ -107,7 +107,7 @@ export function AxesTable({ axes, units }: { axes: Axis[]; units: string | undef
         {
           key: 'name',
           label: 'Axis',
-          render: (a) => <span title={a.address}>{a.name ?? a.index ?? '?'}</span>,
+          render: (a) => <span title={a.address}>{axisName(a.name, a.index)}</span>,
         },
         {
           key: 'actualPos',
@@ -142,11 +142,11 @@ export function AxesTable({ axes, units }: { axes: Axis[]; units: string | undef
           render: (a) =>
             [
               flag(a.isHomeInputOn, 'home'),
-              flag(a.isRevLimInputOn, 'rev limit'),
-              flag(a.isFwdLimInputOn, 'fwd limit'),
-              flag(a.isRevSoftLimOn, 'rev soft'),
-              flag(a.isFwdSoftLimOn, 'fwd soft'),
-              flag(a.isPosErrorInputOn, 'pos error'),
+              flag(a.isRevLimInputOn, 'reverse limit'),
+              flag(a.isFwdLimInputOn, 'forward limit'),
+              flag(a.isRevSoftLimOn, 'reverse soft limit'),
+              flag(a.isFwdSoftLimOn, 'forward soft limit'),
+              flag(a.isPosErrorInputOn, 'position error'),
             ]
               .filter(Boolean)
               .join(', ') || '—',
@@ -155,7 +155,8 @@ export function AxesTable({ axes, units }: { axes: Axis[]; units: string | undef
           key: 'can',
           label: 'Can move',
           render: (a) =>
-            [a.canMoveFwd ? 'fwd' : null, a.canMoveRev ? 'rev' : null].filter(Boolean).join(' / ') || 'no',
+            [a.canMoveFwd ? 'forward' : null, a.canMoveRev ? 'reverse' : null].filter(Boolean).join(' / ') ||
+            'no',
         },
         {
           key: 'errorCode',

@@ -1,7 +1,7 @@
 // @vitest-environment happy-dom
 import { cleanup, fireEvent, render, screen } from '@testing-library/react';
 import { afterEach, describe, expect, it, vi } from 'vitest';
-import { CsvButton } from './common';
+import { axisName, CsvButton } from './common';
 
 afterEach(() => {
   cleanup();
@@ -46,5 +46,16 @@ describe('CsvButton', () => {
   it('is disabled for an empty table', () => {
     render(<CsvButton name="empty" columns={[{ label: 'a', value: () => 1 }]} rows={[]} />);
     expect((screen.getByTestId('csv-empty') as HTMLButtonElement).disabled).toBe(true);
+  });
+});
+
+describe('axisName', () => {
+  it("names TouchCut's axes as people say them", () => {
+    expect(axisName('axisLong')).toBe('Long axis');
+    expect(axisName('axisShort')).toBe('Short axis');
+    expect(axisName('axisTorch')).toBe('Torch axis');
+    expect(axisName('axisBevelHead')).toBe('Bevel head axis');
+    expect(axisName('Gantry')).toBe('Gantry');
+    expect(axisName(undefined, '10')).toBe('Axis 10');
   });
 });

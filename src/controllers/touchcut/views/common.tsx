@@ -38,6 +38,27 @@ export function UnitsPicker() {
   );
 }
 
+/** TouchCut's axis names as people say them. */
+const AXIS_WORDS: Record<string, string> = {
+  axisLong: 'Long axis',
+  axisShort: 'Short axis',
+  axisTorch: 'Torch axis',
+};
+
+/**
+ * An axis's name for people: "axisLong" → "Long axis"; another `axisSomeThing` → "Some thing
+ * axis"; any other name as TouchCut sends it; no name → "Axis <index>".
+ */
+export function axisName(name: string | undefined, index?: string | number): string {
+  if (name === undefined || name === '') return index === undefined ? 'Axis' : `Axis ${index}`;
+  const known = AXIS_WORDS[name];
+  if (known) return known;
+  const m = /^axis([A-Z][A-Za-z0-9]*)$/.exec(name);
+  if (!m?.[1]) return name;
+  const words = m[1].replace(/([a-z0-9])([A-Z])/g, '$1 $2').toLowerCase();
+  return `${words.charAt(0).toUpperCase()}${words.slice(1)} axis`;
+}
+
 export function num(v: number | undefined | null, digits = 2): string {
   return formatDecimal(v, digits);
 }
