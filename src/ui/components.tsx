@@ -435,6 +435,8 @@ export function Dialog(props: {
         if (returningTo === opener) returningTo = null;
         const now = document.activeElement;
         if (now && now !== document.body && !el.contains(now)) return;
+        // Never onto a stop control: a stray Enter would send it again.
+        if (opener.matches(STOP_CONTROLS)) return;
         if (opener.isConnected && !opener.closest('[inert]')) opener.focus({ preventScroll: true });
       });
     };

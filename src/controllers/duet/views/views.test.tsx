@@ -9,6 +9,8 @@ import { DuetSession } from '../session';
 import { DuetSimulator } from '../sim/simulator';
 import { Files } from './Files';
 import { Overview } from './Overview';
+import { JobControls } from '../../../app/kiosk/JobControls';
+import { KIOSK_FAMILIES } from '../../../app/kiosk/per-family';
 
 let sim: DuetSimulator;
 let session: DuetSession;
@@ -34,19 +36,34 @@ afterEach(() => {
 });
 
 describe('Duet views', () => {
-  it('overview: status, a running job, pause without confirmation, then resume and cancel offered', async () => {
-    render(<Overview session={session} />);
+  it('overview: status, a running job, pause without confirmation, then resume and stop job offered', async () => {
+    // The machine page: the shared job control row over the family's overview.
+    render(
+      <>
+        <JobControls session={session} family={KIOSK_FAMILIES.duet!} />
+        <Overview session={session} />
+      </>,
+    );
     expect(screen.getByTestId('duet-status').textContent).toBe('Idle');
     expect(screen.getByTestId('duet-board').textContent).toContain('Simulated Duet 3 Mini 5+');
-    expect(screen.getByTestId('duet-estop')).toBeTruthy();
+    expect(screen.getByTestId('cmd-duet.estop')).toBeTruthy();
     act(() => void sim.runCode('M32 "0:/gcodes/bracket.gcode"'));
-    await screen.findByTestId('duet-pause', undefined, { timeout: 3000 });
-    expect(screen.getByTestId('duet-job-name').textContent).toBe('bracket.gcode');
-    expect(screen.queryByTestId('duet-cancel')).toBeNull();
-    fireEvent.click(screen.getByTestId('duet-pause'));
-    await screen.findByTestId('duet-cancel', undefined, { timeout: 3000 });
+    await waitFor(() => expect(screen.getByTestId('duet-job-name').textContent).toBe('bracket.gcode'), {
+      timeout: 3000,
+    });
+    await waitFor(() =>
+      expect(screen.getByTestId('cmd-duet.pause').getAttribute('aria-disabled')).toBeNull(),
+    );
+    expect(screen.getByTestId('cmd-duet.cancel').getAttribute('aria-disabled')).toBe('true');
+    fireEvent.click(screen.getByTestId('cmd-duet.pause'));
+    await waitFor(
+      () => expect(screen.getByTestId('cmd-duet.cancel').getAttribute('aria-disabled')).toBeNull(),
+      {
+        timeout: 3000,
+      },
+    );
     expect(sim.codes).toContain('M25');
-    expect(screen.getByTestId('duet-resume')).toBeTruthy();
+    expect(screen.getByTestId('cmd-duet.resume').getAttribute('aria-disabled')).toBeNull();
   });
 
   it('answers a choice message box with M292 R{index}', async () => {

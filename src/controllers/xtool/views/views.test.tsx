@@ -1,6 +1,8 @@
 // @vitest-environment happy-dom
 import { act, cleanup, fireEvent, render, screen } from '@testing-library/react';
 import { afterEach, beforeEach, describe, expect, it } from 'vitest';
+import { JobControls } from '../../../app/kiosk/JobControls';
+import { KIOSK_FAMILIES } from '../../../app/kiosk/per-family';
 import { authStore } from '../../../fleet/auth';
 import { createContext } from '../../../fleet/fleet';
 import type { CommandDecl } from '../../../fleet/commands';
@@ -14,6 +16,16 @@ import type { PeripheryStatus } from '../wire';
 import { Discover } from './Discover';
 import { Overview } from './Overview';
 import { Safety } from './Safety';
+
+/** The machine page: the shared job control row over the family's overview. */
+function Page({ session }: { session: XtoolSession }) {
+  return (
+    <>
+      <JobControls session={session} family={KIOSK_FAMILIES.xtool!} />
+      <Overview session={session} />
+    </>
+  );
+}
 
 /** A session that is never started: the tests feed it frames and state directly (no network). */
 function online(role: Role) {
@@ -45,7 +57,7 @@ function unavailable(el: HTMLElement): boolean {
 describe('Overview', () => {
   it('shows the loaded job plainly and enables only what makes sense', () => {
     const { session } = online('operator');
-    render(<Overview session={session} />);
+    render(<Page session={session} />);
     act(() => session.onFrame('ok:WORKING_ONLINE_READY\n'));
     expect(screen.getByTestId('xtool-press-button').textContent).toMatch(/button on the machine/);
     expect(unavailable(screen.getByTestId('cmd-xtool.pause'))).toBe(true);
@@ -62,11 +74,14 @@ describe('Overview', () => {
 
   it('a viewer sees the state but cannot pause', () => {
     const { session } = online('viewer');
-    render(<Overview session={session} />);
+    render(<Page session={session} />);
     act(() => session.onFrame('ok:WORKING_OFFLINE\n'));
-    const pause = screen.getByTestId('cmd-xtool.pause') as HTMLButtonElement;
-    expect(unavailable(pause)).toBe(true);
-    expect(pause.title).toMatch(/operator/);
+    expect(screen.getByTestId('xtool-state').textContent).toBe('running');
+    // The job control row offers a viewer nothing, and says so as text (no hover on a tablet).
+    expect(screen.queryByTestId('cmd-xtool.pause')).toBeNull();
+    expect(screen.getByTestId('kiosk-no-controls').textContent).toContain(
+      'Your role (viewer) has no controls',
+    );
   });
 
   it('says "unsupported model" with what the device answered', () => {
