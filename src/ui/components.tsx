@@ -428,6 +428,15 @@ export function Dialog(props: {
       if (el.open && typeof el.close === 'function') el.close();
       else el.removeAttribute('open');
       if (!focusWasInside || !opener) return;
+      // Never back onto a stop control (the browser's own close puts it there): a stray Enter would
+      // send it again. Focus leaves it instead.
+      if (opener.matches(STOP_CONTROLS)) {
+        queueMicrotask(() => {
+          const now = document.activeElement;
+          if (now instanceof HTMLElement && now.closest(STOP_CONTROLS)) now.blur();
+        });
+        return;
+      }
       // Focus back to the opener once the commit is done (the page may stop being inert in it),
       // unless another dialog took focus meanwhile.
       returningTo = opener;
@@ -435,8 +444,6 @@ export function Dialog(props: {
         if (returningTo === opener) returningTo = null;
         const now = document.activeElement;
         if (now && now !== document.body && !el.contains(now)) return;
-        // Never onto a stop control: a stray Enter would send it again.
-        if (opener.matches(STOP_CONTROLS)) return;
         if (opener.isConnected && !opener.closest('[inert]')) opener.focus({ preventScroll: true });
       });
     };

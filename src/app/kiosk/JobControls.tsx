@@ -5,7 +5,8 @@ import { CommandButton, useRole } from '../../fleet/react';
 import { roleAtLeast } from '../../fleet/types';
 import { JOB_CONTROL_WORDS, type JobControlKind, type KioskFamily } from './per-family';
 
-const COARSE = '(pointer: coarse)';
+/** A touch screen (also one beside a mouse: a tablet with a keyboard case). */
+const COARSE = '(pointer: coarse), (any-pointer: coarse)';
 /** This console's choice (localStorage): `on` or `off`; unset follows the screen (on for touch). */
 export const ESTOP_CONFIRM_KEY = 'shopdeck.estop-confirm';
 
@@ -105,14 +106,14 @@ export function JobControls({
           label={word}
           dismissLabel={which === 'stop' ? family.keep : KEEP[which]}
           confirmText={which === 'estop' && estopConfirm ? ESTOP_QUESTION : undefined}
-          onDone={(r) =>
+          onDone={(r: string) =>
             which === 'estop' || which === 'stop'
               ? setSaid({
                   which,
                   text:
                     which === 'estop'
-                      ? `Emergency stop sent (${r}): the machine is halted and the job has ended. Check the machine before the next job.`
-                      : `Stop job sent (${r}): the job has ended and cannot be resumed.`,
+                      ? 'Emergency stop sent: the machine is halted and the job has ended. Check the machine before the next job.'
+                      : `Stop job sent (${r}): the job ends and cannot be resumed.`,
                 })
               : setSaid(null)
           }
