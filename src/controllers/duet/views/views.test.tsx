@@ -5,12 +5,11 @@ import { afterAll, afterEach, beforeAll, beforeEach, describe, expect, it } from
 import { createContext } from '../../../fleet/fleet';
 import { alwaysVisible } from '../../../fleet/link';
 import { simulatorHandlers } from '../../../fleet/msw';
+import { CommandButton } from '../../../fleet/react';
 import { DuetSession } from '../session';
 import { DuetSimulator } from '../sim/simulator';
 import { Files } from './Files';
 import { Overview } from './Overview';
-import { JobControls } from '../../../app/kiosk/JobControls';
-import { KIOSK_FAMILIES } from '../../../app/kiosk/per-family';
 
 let sim: DuetSimulator;
 let session: DuetSession;
@@ -37,10 +36,15 @@ afterEach(() => {
 
 describe('Duet views', () => {
   it('overview: status, a running job, pause without confirmation, then resume and stop job offered', async () => {
-    // The machine page: the shared job control row over the family's overview.
+    // The machine page: the family's job commands (shown by the page's shared job control row,
+    // src/app/kiosk/JobControls.tsx, which a family may not import) over the family's overview.
+    const { commands: runner, snapshot } = session.ctx;
+    const c = session.cmd;
     render(
       <>
-        <JobControls session={session} family={KIOSK_FAMILIES.duet!} />
+        {[c.pause, c.resume, c.cancel, c.estop].map((cmd) => (
+          <CommandButton key={cmd.id} runner={runner} snapshot={snapshot} command={cmd} args={undefined} />
+        ))}
         <Overview session={session} />
       </>,
     );
