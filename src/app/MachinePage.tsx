@@ -9,6 +9,8 @@ import { roleAtLeast, type Activity, type Alarm } from '../fleet/types';
 import { Badge, EmptyState, Loading, Notice } from '../ui';
 import { MachineAge } from './Age';
 import { ErrorBoundary } from './ErrorBoundary';
+import { JobControls } from './kiosk/JobControls';
+import { KIOSK_FAMILIES } from './kiosk/per-family';
 import { MachineProblems } from './MachineProblems';
 import { KioskPage } from './pages';
 import { Link, usePageTitle } from './router';
@@ -67,6 +69,7 @@ function MachinePageBody({ rt, tab }: { rt: MachineRuntime; tab: string | null }
     retryAt: x.retryAt,
   }));
   const session = rt.session;
+  const family = KIOSK_FAMILIES[info.kind];
   const tabs: PageTab[] = [];
   if (mod && session) {
     for (const t of mod.tabs) {
@@ -122,6 +125,8 @@ function MachinePageBody({ rt, tab }: { rt: MachineRuntime; tab: string | null }
         </div>
       )}
       <MachineProblems rt={rt} LoginForm={LoginForm} showPath />
+      {/* The same job control row as the kiosk's, in every family, above every tab. */}
+      {session && family && <JobControls session={session} family={family} />}
       {/* The sections are URLs (bookmarkable): links, the current one marked aria-current. */}
       <nav className="tabs" aria-label="Machine sections">
         {tabs.map((t) => (

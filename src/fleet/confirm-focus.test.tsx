@@ -48,13 +48,13 @@ function statusUpdate(ctx: ReturnType<typeof setup>['ctx'], line: number): void 
 }
 
 describe('confirmation focus (issue 12, defect 2)', () => {
-  it('opens with focus on Cancel, then leaves focus on "Yes, kill" through status updates', () => {
+  it('opens with focus on the dismiss ("Keep running"), then leaves focus on "Yes, kill" through status updates', () => {
     const { ctx, sent } = setup();
     const trigger = screen.getByRole('button', { name: 'Kill' });
     act(() => trigger.focus());
     fireEvent.click(trigger);
     const dialog = screen.getByTestId('confirm-dialog');
-    const cancel = within(dialog).getByRole('button', { name: 'Cancel' });
+    const cancel = within(dialog).getByRole('button', { name: 'Keep running' });
     const yes = within(dialog).getByRole('button', { name: 'Yes, kill' });
     expect(document.activeElement).toBe(cancel);
 
@@ -64,23 +64,23 @@ describe('confirmation focus (issue 12, defect 2)', () => {
     expect(sent).toEqual([]);
   });
 
-  it('a status update with Cancel focused leaves it there (and nothing is sent)', () => {
+  it('a status update with the dismiss focused leaves it there (and nothing is sent)', () => {
     const { ctx, sent } = setup();
     fireEvent.click(screen.getByRole('button', { name: 'Kill' }));
     const dialog = screen.getByTestId('confirm-dialog');
-    const cancel = within(dialog).getByRole('button', { name: 'Cancel' });
+    const cancel = within(dialog).getByRole('button', { name: 'Keep running' });
     statusUpdate(ctx, 121);
     expect(document.activeElement).toBe(cancel);
     expect(sent).toEqual([]);
   });
 
-  it('a two-step confirmation puts focus on Cancel again for the second question, once', () => {
+  it('a two-step confirmation puts focus on the dismiss ("Go back") again for the second question, once', () => {
     const { ctx } = setup({ confirmTwice: true, hazard: 'dangerous', label: 'Upgrade firmware' });
     fireEvent.click(screen.getByRole('button', { name: 'Upgrade firmware' }));
     fireEvent.click(within(screen.getByTestId('confirm-dialog')).getByRole('button', { name: 'Continue' }));
     const dialog = screen.getByTestId('confirm-dialog');
     expect(dialog.textContent).toContain('second confirmation');
-    expect(document.activeElement).toBe(within(dialog).getByRole('button', { name: 'Cancel' }));
+    expect(document.activeElement).toBe(within(dialog).getByRole('button', { name: 'Go back' }));
     const yes = within(dialog).getByRole('button', { name: 'Yes, upgrade firmware' });
     act(() => yes.focus());
     statusUpdate(ctx, 130);

@@ -1,4 +1,4 @@
-import { useCallback, useMemo, useState, useSyncExternalStore, type ReactNode } from 'react';
+import { useCallback, useId, useMemo, useState, useSyncExternalStore, type ReactNode } from 'react';
 import { useStore, type StoreApi } from 'zustand';
 import { useShallow } from 'zustand/react/shallow';
 import { Button, Dialog, ScrollRegion, downloadText, formatTime } from '../ui';
@@ -162,6 +162,10 @@ export function CommandButton<A>(props: {
   hideWhenNotAllowed?: boolean;
   /** Extra confirmation body (what exactly will happen). */
   details?: ReactNode;
+  /** The question to ask first instead of the command's own (an emergency stop on a touch screen). */
+  confirmText?: string;
+  /** The dismiss button of the question: what it keeps ("Keep printing"); default by hazard. */
+  dismissLabel?: string;
   onDone?: (result: string) => void;
   onError?: (message: string) => void;
   testId?: string;
@@ -177,7 +181,8 @@ export function CommandButton<A>(props: {
   const allowed = roleAtLeast(role, command.role);
   // Follows the runner, the snapshot and every store the command's availability reads.
   const reason = useBlockedReason(runner, props.snapshot, command);
-  const confirmText = confirmationText(command, args);
+  const confirmText = props.confirmText ?? confirmationText(command, args);
+  const reasonId = useId();
 
   const send = useCallback(async () => {
     setConfirmStep(0);
@@ -213,8 +218,10 @@ export function CommandButton<A>(props: {
       : command.label);
   // Stop controls are marked: nothing may focus one by itself (a stray Enter would send it).
   const stop = command.hazard === 'stop' || undefined;
+  // Never "Cancel" for the dismiss: in a question about cancelling it would mean both answers.
+  const dismiss = props.dismissLabel ?? (stop ? 'Keep running' : 'Go back');
   return (
-    <>
+    <span className={`ui-cmd${reason ? ' unavailable' : ''}`}>
       <Button
         variant={
           props.variant ??
@@ -224,6 +231,7 @@ export function CommandButton<A>(props: {
         busy={inFlight}
         disabled={inFlight}
         aria-disabled={Boolean(reason) || undefined}
+        aria-describedby={reason && !error ? reasonId : undefined}
         onClick={onClick}
         title={title}
         aria-label={props.label ?? (typeof props.children === 'string' ? undefined : command.label)}
@@ -233,6 +241,12 @@ export function CommandButton<A>(props: {
       >
         {inFlight ? `${command.label}…` : (props.children ?? command.label)}
       </Button>
+      {/* Why it is unavailable, as text: shown under it on touch screens (no hover there). */}
+      {reason && !error && (
+        <span className="ui-cmd-reason small" id={reasonId} data-testid={`cmd-reason-${command.id}`}>
+          {reason}
+        </span>
+      )}
       {error && (
         <span
           className="ui-muted"
@@ -254,8 +268,8 @@ export function CommandButton<A>(props: {
           focusKey={confirmStep}
           actions={
             <>
-              <Button onClick={() => setConfirmStep(0)} data-autofocus>
-                Cancel
+              <Button onClick={() => setConfirmStep(0)} data-autofocus data-testid="confirm-keep">
+                {dismiss}
               </Button>
               <Button
                 variant={command.hazard === 'dangerous' || command.hazard === 'stop' ? 'danger' : 'primary'}
@@ -282,7 +296,7 @@ export function CommandButton<A>(props: {
           )}
         </Dialog>
       )}
-    </>
+    </span>
   );
 }
 

@@ -431,6 +431,15 @@ export function Dialog(props: {
       if (el.open && typeof el.close === 'function') el.close();
       else el.removeAttribute('open');
       if (!focusWasInside || !opener) return;
+      // Never back onto a stop control (the browser's own close puts it there): a stray Enter would
+      // send it again. Focus leaves it instead.
+      if (opener.matches(STOP_CONTROLS)) {
+        queueMicrotask(() => {
+          const now = document.activeElement;
+          if (now instanceof HTMLElement && now.closest(STOP_CONTROLS)) now.blur();
+        });
+        return;
+      }
       // Focus back to the opener once the commit is done (the page may stop being inert in it),
       // unless another dialog took focus meanwhile.
       returningTo = opener;

@@ -164,7 +164,7 @@ test.describe('accessibility (axe)', () => {
 
     await sections(page).getByRole('link', { name: 'Simulator' }).click();
     await page.getByRole('button', { name: 'Message box: integer' }).click();
-    await sections(page).getByRole('link', { name: 'Overview' }).click();
+    await sections(page).getByRole('link', { name: 'Status' }).click();
     await expect(page.getByRole('dialog')).toBeVisible();
     await audit(page, info, 'Duet message box');
 

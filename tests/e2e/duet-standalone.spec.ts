@@ -75,23 +75,23 @@ test.describe('Duet standalone (rr_*)', () => {
     await expect(page.getByTestId('confirm-dialog')).toContainText('Start printing bracket.gcode?');
     await page.getByTestId('confirm-yes').tap();
 
-    await tab(page, 'Overview');
+    await tab(page, 'Status');
     await expect(page.getByTestId('duet-status')).toHaveText('Printing');
     await expect(page.getByTestId('duet-job-name')).toHaveText('bracket.gcode');
-    await page.getByTestId('duet-pause').tap();
+    await page.getByTestId('cmd-duet.pause').tap();
     await expect(page.getByTestId('duet-status')).toHaveText('Paused');
 
     // A message box (the board's M291), answered from the page: M292 by rr_gcode.
     await tab(page, 'Simulator');
     await page.getByTestId('sim-control-box-4').tap();
-    await tab(page, 'Overview');
+    await tab(page, 'Status');
     const dialog = page.getByTestId('duet-messagebox');
     await expect(dialog).toContainText('Which filament is loaded?');
     await page.getByTestId('duet-choice-1').tap();
     await page.getByTestId('duet-messagebox-ok').tap();
     await expect(dialog).toHaveCount(0);
 
-    await page.getByTestId('duet-resume').tap();
+    await page.getByTestId('cmd-duet.resume').tap();
     await expect(page.getByTestId('confirm-dialog')).toContainText('Resume the print?');
     await page.getByTestId('confirm-yes').tap();
     await expect(page.getByTestId('duet-status')).toHaveText('Printing');

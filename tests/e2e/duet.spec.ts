@@ -46,21 +46,22 @@ test.describe('Duet (DSF)', () => {
     await expect(page.getByTestId('confirm-dialog')).toContainText('Start printing bracket.gcode?');
     await page.getByTestId('confirm-yes').tap();
 
-    await tab(page, 'Overview');
+    await tab(page, 'Status');
     await expect(page.getByTestId('duet-status')).toHaveText('Printing');
     await expect(page.getByTestId('duet-job-name')).toHaveText('bracket.gcode');
-    // Cancel is offered only while paused.
-    await expect(page.getByTestId('duet-cancel')).toHaveCount(0);
+    // Stop job (cancel) is only for a paused print: faint, its reason said.
+    await expect(page.getByTestId('cmd-duet.cancel')).toHaveAttribute('aria-disabled', 'true');
+    await expect(page.getByTestId('cmd-reason-duet.cancel')).toContainText('Pause the print first');
 
     // Pause: one tap, no confirmation, a big touch target.
-    const pause = page.getByTestId('duet-pause');
+    const pause = page.getByTestId('cmd-duet.pause');
     const box = await pause.boundingBox();
     expect(box?.height ?? 0).toBeGreaterThanOrEqual(44);
     await pause.tap();
     await expect(page.getByTestId('duet-status')).toHaveText('Paused');
     await expect(page.getByTestId('machine-activity')).toBeVisible();
 
-    await page.getByTestId('duet-cancel').tap();
+    await page.getByTestId('cmd-duet.cancel').tap();
     await expect(page.getByTestId('confirm-dialog')).toContainText('Cancel the print?');
     await page.getByTestId('confirm-yes').tap();
     await expect(page.getByTestId('duet-status')).toHaveText('Idle');
@@ -93,7 +94,7 @@ test.describe('Duet (DSF)', () => {
     await page.goto(`/m/${ID}`);
     await expect(page.getByTestId('machine-link')).toHaveText('Online');
     await simControl(page, 'box-4');
-    await tab(page, 'Overview');
+    await tab(page, 'Status');
     const dialog = page.getByTestId('duet-messagebox');
     await expect(dialog).toContainText('Which filament is loaded?');
     await page.getByTestId('duet-choice-1').tap();
@@ -127,6 +128,6 @@ test.describe('Duet (DSF)', () => {
     await expect(log).toContainText('FIRMWARE_NAME');
     await expect(log).toContainText('> M115');
     // Emergency stop is on this page too.
-    await expect(page.getByTestId('duet-estop')).toBeVisible();
+    await expect(page.getByTestId('cmd-duet.estop')).toBeVisible();
   });
 });

@@ -163,10 +163,10 @@ test.describe('kiosk tablets', () => {
         expect(await smallTargets(page)).toEqual([]);
         await page.getByTestId('confirm-yes').tap();
         await expect(page.getByTestId('kiosk-activity')).toHaveText('Running');
-        // Stop asks first; Cancel leaves the job running.
+        // Stop asks first; "Keep cutting" (never "Cancel") leaves the job running.
         await kiosk.locator('[data-kiosk="stop"] button').tap();
         await expect(dialog).toContainText('Stop the job?');
-        await dialog.getByRole('button', { name: 'Cancel' }).tap();
+        await dialog.getByRole('button', { name: 'Keep cutting' }).tap();
         await expect(dialog).toHaveCount(0);
         await expect(page.getByTestId('kiosk-activity')).toHaveText('Running');
       });

@@ -71,12 +71,12 @@ test.describe('Prunt config editor', () => {
     test.skip(info.project.name !== 'desktop', 'desktop layout only');
     await page.goto(`/m/${ID}`);
     await expect(page.getByTestId('machine-link')).toHaveText('Online');
-    await section(page, 'Status').click();
+    await section(page, 'Readings').click();
     await expect(page.getByTestId('prunt-status')).toContainText('Internal Status Reporter');
     await expect(page.getByTestId('prunt-status')).toContainText(
       'Only present when the thermistor kind is not Disabled.',
     );
-    await section(page, 'G-code').click();
+    await section(page, 'Console').click();
     await page.getByTestId('prunt-gcode-input').fill('M114');
     await page.getByTestId('prunt-gcode-input').press('Enter');
     await expect(page.getByTestId('prunt-gcode-history')).toContainText('Completed');
@@ -88,7 +88,7 @@ test.describe('Prunt config editor', () => {
     await expect(page.getByTestId('machine-activity')).toContainText(/running/i);
     await expect(page.getByTestId('run-calibration_cube.gcode')).toBeDisabled();
     // The controller's own 500 text is shown as it is, next to the action.
-    await section(page, 'G-code').click();
+    await section(page, 'Console').click();
     await page.getByTestId('prunt-gcode-input').fill('G28');
     await page.getByTestId('prunt-gcode-input').press('Enter');
     await expect(page.getByTestId('prunt-gcode-error')).toHaveText(

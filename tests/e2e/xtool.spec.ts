@@ -40,7 +40,7 @@ test.describe('xTool D-series', () => {
     await page.goto(`/m/${ID}`);
     await expect(page.getByTestId('machine-link')).toHaveText('Online');
     // Operators see job controls but not the supervisor tabs, nor the simulator's.
-    await expect(section(page, 'G-code')).toHaveCount(0);
+    await expect(section(page, 'Console')).toHaveCount(0);
     await expect(section(page, 'Firmware')).toHaveCount(0);
     await expect(section(page, 'Simulator')).toHaveCount(0);
 

@@ -1,10 +1,9 @@
 import { Suspense, useEffect, useMemo, type ComponentType } from 'react';
 import { FAMILY_LABELS, useController } from '../../controllers';
-import type { AnyCommand } from '../../fleet/commands';
 import { linkWords, type MachineSession, type TabProps } from '../../fleet/contract';
 import { showDetail, type MachineRuntime } from '../../fleet/fleet';
-import { CommandButton, useRole, useSnapshot } from '../../fleet/react';
-import { mostSevereAlarm, roleAtLeast, type Activity } from '../../fleet/types';
+import { useSnapshot } from '../../fleet/react';
+import { mostSevereAlarm, type Activity } from '../../fleet/types';
 import { Badge, Loading, ProgressBar, formatDuration, formatPercent } from '../../ui';
 import { TouchLockPolicy } from '../../ui/Lockable';
 import { MachineAge } from '../Age';
@@ -12,7 +11,8 @@ import { ErrorBoundary } from '../ErrorBoundary';
 import { MachineProblems } from '../MachineProblems';
 import { cardOf, firstScreenShown } from '../first-screen';
 import { LINK_TONE, shownState } from '../status';
-import { KIOSK_FAMILIES, type KioskFamily } from './per-family';
+import { JobControls } from './JobControls';
+import { KIOSK_FAMILIES } from './per-family';
 import { useScreenWakeLock, type WakeStatus } from './wake-lock';
 
 /** A job is under way: the screen stays on. */
@@ -133,7 +133,7 @@ export function KioskPage({ rt }: { rt: MachineRuntime }) {
           )}
         </section>
 
-        {session && family && <KioskControls session={session} family={family} />}
+        {session && family && <JobControls session={session} family={family} kiosk />}
         {session && !family && (
           <p className="ui-muted kiosk-note" data-testid="kiosk-no-controls">
             This machine takes no commands from the console: use its own panel.
@@ -151,53 +151,6 @@ export function KioskPage({ rt }: { rt: MachineRuntime }) {
         <WakeNote status={wake} />
       </div>
     </TouchLockPolicy>
-  );
-}
-
-/** Pause and resume on one side, stop on the other, a control's width or more apart. */
-function KioskControls({ session, family }: { session: MachineSession; family: KioskFamily }) {
-  const role = useRole();
-  const { commands: runner, snapshot } = session.ctx;
-  const pick = (id: string): AnyCommand | null => session.commands[id] ?? null;
-  const pause = pick(family.pause);
-  const resume = pick(family.resume);
-  const stop = pick(family.stop);
-  const usable = [pause, resume, stop].filter(
-    (c): c is AnyCommand => c !== null && roleAtLeast(role, c.role),
-  );
-  if (usable.length === 0)
-    return (
-      <p className="ui-muted kiosk-note" data-testid="kiosk-no-controls">
-        Your role ({role}) has no controls on this machine.
-      </p>
-    );
-  const control = (
-    cmd: AnyCommand | null,
-    which: 'pause' | 'resume' | 'stop',
-    variant: 'secondary' | 'primary' | 'danger',
-  ) =>
-    cmd &&
-    roleAtLeast(role, cmd.role) && (
-      <div className={`kiosk-control kiosk-${which}`} data-kiosk={which}>
-        <CommandButton
-          runner={runner}
-          snapshot={snapshot}
-          command={cmd}
-          args={undefined as never}
-          variant={variant}
-        >
-          {cmd.label}
-        </CommandButton>
-      </div>
-    );
-  return (
-    <section className="kiosk-controls" aria-label="Job controls">
-      <div className="kiosk-job-controls">
-        {control(pause, 'pause', 'secondary')}
-        {control(resume, 'resume', 'primary')}
-      </div>
-      <div className="kiosk-stop-controls">{control(stop, 'stop', 'danger')}</div>
-    </section>
   );
 }
 

@@ -17,7 +17,7 @@ export const duetModule = defineController<DuetSession>({
   label: FAMILY_LABELS.duet,
   createSession: (ctx) => new DuetSession(ctx),
   tabs: [
-    { id: 'overview', label: 'Overview', Component: Overview },
+    { id: 'overview', label: 'Status', Component: Overview },
     { id: 'console', label: 'Console', Component: Console },
     { id: 'files', label: 'Files', Component: Files },
     { id: 'heightmap', label: 'Height map', Component: HeightMap },

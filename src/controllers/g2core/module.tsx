@@ -17,7 +17,7 @@ export const g2coreModule = defineController<G2coreSession>({
   label: FAMILY_LABELS.g2core,
   createSession: (ctx) => new G2coreSession(ctx),
   tabs: [
-    { id: 'overview', label: 'Machine', Component: OverviewTab },
+    { id: 'overview', label: 'Status', Component: OverviewTab },
     { id: 'jog', label: 'Jog & home', Component: JogTab, role: 'operator' },
     { id: 'jobs', label: 'Jobs', Component: JobsTab },
     { id: 'console', label: 'Console', Component: ConsoleTab, role: 'supervisor' },

@@ -15,10 +15,10 @@ export const pruntModule = defineController<PruntSession>({
   label: FAMILY_LABELS.prunt,
   createSession: (ctx) => new PruntSession(ctx),
   tabs: [
-    { id: 'overview', label: 'Overview', Component: OverviewTab },
-    { id: 'status', label: 'Status', Component: StatusTab },
+    { id: 'overview', label: 'Status', Component: OverviewTab },
+    { id: 'status', label: 'Readings', Component: StatusTab },
     { id: 'config', label: 'Config', Component: ConfigTab },
     { id: 'files', label: 'Files', Component: FilesTab },
-    { id: 'console', label: 'G-code', Component: ConsoleTab, role: 'supervisor' },
+    { id: 'console', label: 'Console', Component: ConsoleTab, role: 'supervisor' },
   ],
 });

@@ -19,7 +19,7 @@ export const xtoolModule = defineController<XtoolSession>({
     { id: 'overview', label: 'Status', Component: Overview },
     { id: 'files', label: 'Files', Component: Files },
     { id: 'safety', label: 'Safety & settings', Component: Safety },
-    { id: 'console', label: 'G-code', Component: Console, role: 'supervisor' },
+    { id: 'console', label: 'Console', Component: Console, role: 'supervisor' },
     { id: 'firmware', label: 'Firmware', Component: Firmware, role: 'supervisor' },
   ],
   TileExtra,

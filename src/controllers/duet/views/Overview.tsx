@@ -74,7 +74,6 @@ function JobPanel({ session }: { session: DuetSession }) {
   });
   const status = d.status;
   const left = d.timesLeft?.file ?? d.timesLeft?.filament ?? d.timesLeft?.slicer ?? null;
-  const cmds = session.cmd;
   return (
     <Panel title="Job" testId="duet-job">
       <div className="ui-row" style={{ marginBottom: 10 }}>
@@ -126,44 +125,6 @@ function JobPanel({ session }: { session: DuetSession }) {
           Files tab.
         </p>
       )}
-      <div className="ui-row" style={{ marginTop: 12 }}>
-        {(status === 'processing' || status === 'simulating') && (
-          <CommandButton
-            runner={ctx.commands}
-            snapshot={ctx.snapshot}
-            command={cmds.pause}
-            args={undefined}
-            variant="primary"
-            testId="duet-pause"
-          >
-            <span aria-hidden="true">❚❚</span> Pause
-          </CommandButton>
-        )}
-        {(status === 'paused' || status === 'pausing') && (
-          <>
-            <CommandButton
-              runner={ctx.commands}
-              snapshot={ctx.snapshot}
-              command={cmds.resume}
-              args={undefined}
-              variant="primary"
-              testId="duet-resume"
-            >
-              <span aria-hidden="true">▶</span> Resume
-            </CommandButton>
-            <CommandButton
-              runner={ctx.commands}
-              snapshot={ctx.snapshot}
-              command={cmds.cancel}
-              args={undefined}
-              variant="danger"
-              testId="duet-cancel"
-            >
-              <span aria-hidden="true">■</span> Cancel print
-            </CommandButton>
-          </>
-        )}
-      </div>
     </Panel>
   );
 }

@@ -69,9 +69,11 @@ export function Thumbnail(props: { thumb: ThumbnailData | null | undefined; size
   return <img src={src} alt={props.alt ?? 'thumbnail'} style={box} data-format={t.format} />;
 }
 
-/** Emergency stop: one tap, no confirmation, on every page of the machine. */
+/**
+ * The status line over every Duet page (halted, a hidden message box). The emergency stop is in the
+ * machine page's job control row (src/app/kiosk/JobControls.tsx), on every page of the machine.
+ */
 export function EstopBar({ session }: { session: DuetSession }) {
-  const ctx = session.ctx;
   const { status, box, dismissed } = useStoreSelect(session.store, (s) => ({
     status: s.model?.state.status ?? null,
     box: s.model?.state.messageBox ?? null,
@@ -94,16 +96,6 @@ export function EstopBar({ session }: { session: DuetSession }) {
           </Button>
         )}
       </span>
-      <CommandButton
-        runner={ctx.commands}
-        snapshot={ctx.snapshot}
-        command={session.cmd.estop}
-        args={undefined}
-        variant="danger"
-        testId="duet-estop"
-      >
-        Emergency stop
-      </CommandButton>
     </div>
   );
 }

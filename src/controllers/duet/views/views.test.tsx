@@ -5,6 +5,7 @@ import { afterAll, afterEach, beforeAll, beforeEach, describe, expect, it } from
 import { createContext } from '../../../fleet/fleet';
 import { alwaysVisible } from '../../../fleet/link';
 import { simulatorHandlers } from '../../../fleet/msw';
+import { CommandButton } from '../../../fleet/react';
 import { DuetSession } from '../session';
 import { DuetSimulator } from '../sim/simulator';
 import { Files } from './Files';
@@ -34,19 +35,39 @@ afterEach(() => {
 });
 
 describe('Duet views', () => {
-  it('overview: status, a running job, pause without confirmation, then resume and cancel offered', async () => {
-    render(<Overview session={session} />);
+  it('overview: status, a running job, pause without confirmation, then resume and stop job offered', async () => {
+    // The machine page: the family's job commands (shown by the page's shared job control row,
+    // src/app/kiosk/JobControls.tsx, which a family may not import) over the family's overview.
+    const { commands: runner, snapshot } = session.ctx;
+    const c = session.cmd;
+    render(
+      <>
+        {[c.pause, c.resume, c.cancel, c.estop].map((cmd) => (
+          <CommandButton key={cmd.id} runner={runner} snapshot={snapshot} command={cmd} args={undefined} />
+        ))}
+        <Overview session={session} />
+      </>,
+    );
     expect(screen.getByTestId('duet-status').textContent).toBe('Idle');
     expect(screen.getByTestId('duet-board').textContent).toContain('Simulated Duet 3 Mini 5+');
-    expect(screen.getByTestId('duet-estop')).toBeTruthy();
+    expect(screen.getByTestId('cmd-duet.estop')).toBeTruthy();
     act(() => void sim.runCode('M32 "0:/gcodes/bracket.gcode"'));
-    await screen.findByTestId('duet-pause', undefined, { timeout: 3000 });
-    expect(screen.getByTestId('duet-job-name').textContent).toBe('bracket.gcode');
-    expect(screen.queryByTestId('duet-cancel')).toBeNull();
-    fireEvent.click(screen.getByTestId('duet-pause'));
-    await screen.findByTestId('duet-cancel', undefined, { timeout: 3000 });
+    await waitFor(() => expect(screen.getByTestId('duet-job-name').textContent).toBe('bracket.gcode'), {
+      timeout: 3000,
+    });
+    await waitFor(() =>
+      expect(screen.getByTestId('cmd-duet.pause').getAttribute('aria-disabled')).toBeNull(),
+    );
+    expect(screen.getByTestId('cmd-duet.cancel').getAttribute('aria-disabled')).toBe('true');
+    fireEvent.click(screen.getByTestId('cmd-duet.pause'));
+    await waitFor(
+      () => expect(screen.getByTestId('cmd-duet.cancel').getAttribute('aria-disabled')).toBeNull(),
+      {
+        timeout: 3000,
+      },
+    );
     expect(sim.codes).toContain('M25');
-    expect(screen.getByTestId('duet-resume')).toBeTruthy();
+    expect(screen.getByTestId('cmd-duet.resume').getAttribute('aria-disabled')).toBeNull();
   });
 
   it('answers a choice message box with M292 R{index}', async () => {

@@ -36,7 +36,8 @@ const numOrNull = (v: unknown): number | null => (typeof v === 'number' && Numbe
 export function StatBadge({ session }: { session: G2coreSession }) {
   const stat = useStoreSelect(session.detail, (d) => numOrNull(d.sr.stat));
   return (
-    <span className={`g2-stat tone-${statTone(stat)}`} data-testid="g2-stat" data-stat={stat ?? ''}>
+    // The same state pill as every family's (ui-badge), not drawn like a button.
+    <span className={`ui-badge g2-stat tone-${statTone(stat)}`} data-testid="g2-stat" data-stat={stat ?? ''}>
       {statLabel(stat)}
     </span>
   );
@@ -101,40 +102,16 @@ export function ModalState({ session }: { session: G2coreSession }) {
   );
 }
 
-/** Feedhold, cycle start, kill and clear alarm: the buttons an operator needs at all times. */
+/**
+ * Clear alarm (and a stuck board's reset): feedhold, cycle start and kill are the machine page's
+ * job control row (src/app/kiosk/JobControls.tsx), the same in every family.
+ */
 export function Controls({ session }: { session: G2coreSession }) {
   const { commands: runner, snapshot } = session.ctx;
   // A serial board the gateway reports stuck in run: its hard reset, for a supervisor (issue 19).
   const stuck = useSnapshot(session.ctx, isStuckInRun);
   return (
     <div className="g2-controls" data-testid="g2-controls">
-      <CommandButton
-        runner={runner}
-        snapshot={snapshot}
-        command={session.feedhold}
-        args={undefined}
-        variant="primary"
-      >
-        Feedhold
-      </CommandButton>
-      <CommandButton
-        runner={runner}
-        snapshot={snapshot}
-        command={session.resume}
-        args={undefined}
-        variant="primary"
-      >
-        Cycle start
-      </CommandButton>
-      <CommandButton
-        runner={runner}
-        snapshot={snapshot}
-        command={session.kill}
-        args={undefined}
-        variant="danger"
-      >
-        Kill
-      </CommandButton>
       <CommandButton runner={runner} snapshot={snapshot} command={session.clearAlarm} args={undefined}>
         Clear alarm
       </CommandButton>

@@ -1,5 +1,5 @@
 import { useStore } from 'zustand';
-import { CommandButton, useSnapshot } from '../../../fleet/react';
+import { useSnapshot } from '../../../fleet/react';
 import { Badge, formatDuration, formatNumber, KeyValues, Notice, Panel } from '../../../ui';
 import type { TabProps } from '../../../fleet/contract';
 import type { PruntSession } from '../session';
@@ -21,7 +21,6 @@ export function OverviewTab({ session }: TabProps<PruntSession>) {
   const api = useStore(session.store, (s) => s.api);
   const update = useStore(session.store, (s) => s.update);
   const plug = useStore(session.store, (s) => s.smartPlug);
-  const run = session.ctx.commands;
   const tone =
     snap.activity === 'running'
       ? 'ok'
@@ -53,29 +52,6 @@ export function OverviewTab({ session }: TabProps<PruntSession>) {
             ]}
           />
         )}
-        <div className="ui-row pr-controls">
-          <CommandButton
-            runner={run}
-            snapshot={session.ctx.snapshot}
-            command={session.cmd.pause}
-            args={undefined}
-          />
-          <CommandButton
-            runner={run}
-            snapshot={session.ctx.snapshot}
-            command={session.cmd.resume}
-            args={undefined}
-            variant="primary"
-          />
-          {api === 'module' && (
-            <CommandButton
-              runner={run}
-              snapshot={session.ctx.snapshot}
-              command={session.cmd.cancel}
-              args={undefined}
-            />
-          )}
-        </div>
       </Panel>
       <Panel title="Position">
         <KeyValues items={Object.entries(snap.positions).map(([k, v]) => [k, formatNumber(v, 3, 'mm')])} />

@@ -1,4 +1,4 @@
-import { CommandButton, useSnapshot, useStoreSelect } from '../../../fleet/react';
+import { useSnapshot, useStoreSelect } from '../../../fleet/react';
 import type { TabProps } from '../../../fleet/contract';
 import {
   Badge,
@@ -90,27 +90,6 @@ export function Overview({ session }: TabProps<XtoolSession>) {
               />
             </>
           )}
-          <div className="ui-row" style={{ gap: 14 }}>
-            <CommandButton
-              runner={ctx.commands}
-              snapshot={ctx.snapshot}
-              command={session.pause}
-              args={undefined}
-            />
-            <CommandButton
-              runner={ctx.commands}
-              snapshot={ctx.snapshot}
-              command={session.resume}
-              args={undefined}
-              variant="primary"
-            />
-            <CommandButton
-              runner={ctx.commands}
-              snapshot={ctx.snapshot}
-              command={session.stopJob}
-              args={undefined}
-            />
-          </div>
           <p className="ui-muted" style={{ margin: 0 }}>
             Jobs start with the button on the machine. State from{' '}
             {d.source === 'socket'

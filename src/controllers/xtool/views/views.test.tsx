@@ -6,6 +6,7 @@ import { createContext } from '../../../fleet/fleet';
 import type { CommandDecl } from '../../../fleet/commands';
 import type { SessionContext } from '../../../fleet/contract';
 import { useBlockedReason } from '../../../fleet/kernel';
+import { CommandButton } from '../../../fleet/react';
 import { alwaysVisible } from '../../../fleet/link';
 import type { Role } from '../../../fleet/types';
 import { SETTINGS_KEY } from '../queries';
@@ -14,6 +15,22 @@ import type { PeripheryStatus } from '../wire';
 import { Discover } from './Discover';
 import { Overview } from './Overview';
 import { Safety } from './Safety';
+
+/**
+ * The machine page: the family's job commands (shown by the page's shared job control row,
+ * src/app/kiosk/JobControls.tsx, which a family may not import) over the family's overview.
+ */
+function Page({ session }: { session: XtoolSession }) {
+  const { commands: runner, snapshot } = session.ctx;
+  return (
+    <>
+      {[session.pause, session.resume, session.stopJob].map((c) => (
+        <CommandButton key={c.id} runner={runner} snapshot={snapshot} command={c} args={undefined} />
+      ))}
+      <Overview session={session} />
+    </>
+  );
+}
 
 /** A session that is never started: the tests feed it frames and state directly (no network). */
 function online(role: Role) {
@@ -45,7 +62,7 @@ function unavailable(el: HTMLElement): boolean {
 describe('Overview', () => {
   it('shows the loaded job plainly and enables only what makes sense', () => {
     const { session } = online('operator');
-    render(<Overview session={session} />);
+    render(<Page session={session} />);
     act(() => session.onFrame('ok:WORKING_ONLINE_READY\n'));
     expect(screen.getByTestId('xtool-press-button').textContent).toMatch(/button on the machine/);
     expect(unavailable(screen.getByTestId('cmd-xtool.pause'))).toBe(true);
@@ -62,11 +79,13 @@ describe('Overview', () => {
 
   it('a viewer sees the state but cannot pause', () => {
     const { session } = online('viewer');
-    render(<Overview session={session} />);
+    render(<Page session={session} />);
     act(() => session.onFrame('ok:WORKING_OFFLINE\n'));
     const pause = screen.getByTestId('cmd-xtool.pause') as HTMLButtonElement;
     expect(unavailable(pause)).toBe(true);
     expect(pause.title).toMatch(/operator/);
+    // The reason is text beside the button too (shown under it on touch screens).
+    expect(screen.getByTestId('cmd-reason-xtool.pause').textContent).toMatch(/operator/);
   });
 
   it('says "unsupported model" with what the device answered', () => {
