@@ -80,13 +80,13 @@ describe('18: concurrent edits of the users file are never lost', () => {
       userScript(dir, ['role', 'user0', 'operator'], ''),
       userScript(dir, ['add', 'late', '--role', 'supervisor', '--password-stdin'], 'late-password-1\n'),
       userScript(dir, ['remove', 'user1'], ''),
-      userScript(dir, ['machines', 'user2', 'laser-1'], ''),
+      userScript(dir, ['machines', 'user2', 'demo-xtool'], ''),
     ]);
     for (const r of more) expect(r.code, r.stderr).toBe(0);
     const after = readUsers(file) ?? [];
     expect(after.map((u) => u.name).sort()).toEqual([...names.filter((n) => n !== 'user1'), 'late'].sort());
     expect(after.find((u) => u.name === 'user0')?.role).toBe('operator');
-    expect(after.find((u) => u.name === 'user2')?.machines).toEqual(['laser-1']);
+    expect(after.find((u) => u.name === 'user2')?.machines).toEqual(['demo-xtool']);
     // Real processes on a shared machine: generous, and not what the test measures.
   }, 240_000);
 
