@@ -151,12 +151,20 @@ export function migrate(db: Db, migrations: readonly Migration[] = MIGRATIONS): 
   for (let v = have; v < migrations.length; v++) {
     const m = migrations[v];
     if (!m) break;
-    db.transaction(() => {
-      db.exec(m.sql);
-      // user_version is written in the same transaction: a migration is applied whole or not at all.
-      db.pragma(`user_version = ${v + 1}`);
-    }).immediate();
-    applied.push(m.name);
+    const ran = db
+      .transaction(() => {
+        // Another process (a second `npm run user`, the server starting) may have opened the same
+        // file at the same time and applied this migration between our read of the version and
+        // this write lock: the version is read again under the lock, and a migration already
+        // applied is not run twice.
+        if (schemaVersion(db) !== v) return false;
+        db.exec(m.sql);
+        // user_version is written in the same transaction: a migration is applied whole or not at all.
+        db.pragma(`user_version = ${v + 1}`);
+        return true;
+      })
+      .immediate();
+    if (ran) applied.push(m.name);
   }
   return applied;
 }
@@ -171,11 +179,12 @@ export function openHistoryDb(
   closeSync(openSync(file, 'a', 0o600));
   const db = new Database(file);
   try {
+    // Another connection (a person with the sqlite3 shell, a second process opening the file at
+    // the same moment) holding a lock: wait, not fail. Set first: switching to WAL takes a lock.
+    db.pragma('busy_timeout = 5000');
     db.pragma('journal_mode = WAL');
     db.pragma('synchronous = NORMAL');
     db.pragma('foreign_keys = ON');
-    // Another connection (a person with the sqlite3 shell) holding a lock: wait a little, not fail.
-    db.pragma('busy_timeout = 2000');
     const applied = migrate(db, migrations);
     return { db, applied };
   } catch (e) {
