@@ -16,6 +16,16 @@ async function rowIds(page: Page): Promise<string[]> {
   return ids.map((id) => id.slice('row-'.length));
 }
 
+/**
+ * The fleet's view controls: on a desktop they stand in the toolbar; on a touch screen they are
+ * folded into one "View" control (issue 33, item 8), opened here when it is closed.
+ */
+async function viewControls(page: Page): Promise<void> {
+  const fold = page.getByTestId('fleet-view-fold');
+  if ((await fold.count()) === 0) return;
+  if (!(await fold.evaluate((d) => (d as HTMLDetailsElement).open))) await fold.locator('summary').click();
+}
+
 async function fleetOnline(page: Page): Promise<void> {
   for (const id of DEMO_MACHINES)
     await expect(page.getByTestId(`tile-${id}`).getByTestId('tile-link')).toHaveText('Online');
@@ -53,6 +63,7 @@ test.describe('desktop', () => {
   test('the fleet as a list: sort, filter, group by family, kept for the next visit', async ({ page }) => {
     await page.goto('/');
     await fleetOnline(page);
+    await viewControls(page);
     await page.getByTestId('view-list').click();
     await expect(page).toHaveURL(/\?view=list$/);
     const list = page.getByTestId('fleet-list');
@@ -66,6 +77,7 @@ test.describe('desktop', () => {
       '/m/demo-duet',
     );
 
+    await viewControls(page);
     await page.getByTestId('fleet-sort').selectOption('name');
     expect(await rowIds(page)).toEqual([
       'demo-g2core',
@@ -75,20 +87,25 @@ test.describe('desktop', () => {
       'demo-prunt',
     ]);
 
+    await viewControls(page);
     await page.getByTestId('fleet-filter').fill('printer');
     await expect(list.locator('tbody tr[data-testid^="row-"]')).toHaveCount(2);
     await expect(page.getByTestId('fleet-shown')).toContainText('2 of 5 shown');
+    await viewControls(page);
     await page.getByTestId('fleet-filter').fill('');
+    await viewControls(page);
     await page.getByTestId('fleet-family').selectOption('xtool');
     expect(await rowIds(page)).toEqual(['demo-xtool']);
     await page.getByTestId('fleet-clear').click();
     await expect(list.locator('tbody tr[data-testid^="row-"]')).toHaveCount(5);
+    await viewControls(page);
     await page.getByTestId('fleet-state').selectOption('idle');
     await expect(page.getByTestId('fleet-shown')).toBeVisible();
     await expect(list.getByTestId('row-activity').first()).toHaveText('Idle');
     for (const badge of await list.getByTestId('row-activity').all()) await expect(badge).toHaveText('Idle');
     await page.getByTestId('fleet-clear').click();
 
+    await viewControls(page);
     await page.getByTestId('fleet-group').selectOption('family');
     await expect(page).toHaveURL(/\?view=list&sort=name&group=family$/);
     const headings = list.locator('tbody .fleet-list-group th');
@@ -102,11 +119,13 @@ test.describe('desktop', () => {
     await expect(page.getByTestId('fleet-group-family:xtool').getByTestId('row-demo-xtool')).toBeVisible();
 
     // Tiles grouped the same way.
+    await viewControls(page);
     await page.getByTestId('view-grid').click();
     await expect(page.getByTestId('fleet-group-family:duet').getByTestId('tile-demo-duet')).toBeVisible();
     await expect(page.getByRole('heading', { level: 2, name: /xTool D-series/ })).toBeVisible();
 
     // The view is this browser's: the Fleet link (no query) shows it, and the URL says it.
+    await viewControls(page);
     await page.getByTestId('view-list').click();
     await page.goto('/audit');
     await page.getByRole('navigation', { name: 'Main' }).getByRole('link', { name: 'Fleet' }).click();
@@ -115,6 +134,7 @@ test.describe('desktop', () => {
     // A bookmark wins over what the browser kept.
     await page.goto('/?sort=state');
     await expect(page.getByTestId('fleet-tiles')).toBeVisible();
+    await viewControls(page);
     await expect(page.getByTestId('fleet-sort')).toHaveValue('state');
   });
 
@@ -127,6 +147,7 @@ test.describe('desktop', () => {
     await page.getByTestId('fleet-filter').pressSequentially('?');
     await expect(page.getByTestId('fleet-filter')).toHaveValue('?');
     await expect(page.getByTestId('shortcuts-help')).toHaveCount(0);
+    await viewControls(page);
     await page.getByTestId('fleet-filter').fill('');
     await page.getByTestId('fleet-filter').blur();
 
