@@ -144,10 +144,10 @@ test.describe('desktop', () => {
     await page.goto('/');
     await fleetOnline(page);
     // Typed into the name filter, ? is text.
+    await viewControls(page);
     await page.getByTestId('fleet-filter').pressSequentially('?');
     await expect(page.getByTestId('fleet-filter')).toHaveValue('?');
     await expect(page.getByTestId('shortcuts-help')).toHaveCount(0);
-    await viewControls(page);
     await page.getByTestId('fleet-filter').fill('');
     await page.getByTestId('fleet-filter').blur();
 
