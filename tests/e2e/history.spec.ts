@@ -76,6 +76,8 @@ test('the History page shows a job that ran while no page was open', async ({ pa
 });
 
 test('the History page has no serious accessibility problem (axe, light and dark)', async ({ page }) => {
+  // Two axe runs over a long page: CPU-bound, slow on a busy 2-core machine.
+  test.slow();
   await page.goto('/');
   await page.getByRole('navigation', { name: 'Main' }).getByRole('link', { name: 'History' }).click();
   await expect(page).toHaveURL(/\/history$/);

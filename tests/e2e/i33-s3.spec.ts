@@ -178,6 +178,8 @@ test.describe('issue 33: the top bar, the fleet view control, accessibility', ()
   test('14: axe finds nothing serious on the alarm centre, the history and the open menu', async ({
     page,
   }) => {
+    // Six axe runs (three pages, light and dark): CPU-bound, slow on a busy 2-core machine.
+    test.slow();
     await page.goto('/alarms');
     await expect(page.locator('h1')).toHaveText('Alarm centre');
     await page.waitForTimeout(500);
