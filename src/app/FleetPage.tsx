@@ -76,7 +76,7 @@ function FleetBody({ machines }: { machines: MachineInfo[] }) {
           <FleetList groups={groups} byId={byId} />
         </Suspense>
       ) : (
-        <div data-testid="fleet-tiles">
+        <div data-testid="fleet-tiles" className={groups[0]?.label === null ? undefined : 'fleet-groups'}>
           {groups.map((g) =>
             g.label === null ? (
               <Tiles key={g.key} ids={g.ids} byId={byId} />
@@ -93,7 +93,13 @@ function FleetBody({ machines }: { machines: MachineInfo[] }) {
 function TileGroup({ group, byId }: { group: FleetGroup; byId: ReadonlyMap<string, MachineInfo> }) {
   const id = useId();
   return (
-    <section className="fleet-group" aria-labelledby={id} data-testid={`fleet-group-${group.key}`}>
+    <section
+      className="fleet-group"
+      aria-labelledby={id}
+      data-testid={`fleet-group-${group.key}`}
+      // Its width asks for its tiles' (fleet-views.css): small groups share a row.
+      style={{ '--tiles': group.ids.length } as React.CSSProperties}
+    >
       <h2 id={id}>
         {group.label} <span className="ui-muted">({group.ids.length})</span>
       </h2>

@@ -9,7 +9,7 @@ import { roleAtLeast, type Activity, type Alarm } from '../fleet/types';
 import { Badge, EmptyState, Loading, Notice } from '../ui';
 import { MachineAge } from './Age';
 import { ErrorBoundary } from './ErrorBoundary';
-import { JobControls } from './kiosk/JobControls';
+import { JobControls, PendingJobControls } from './kiosk/JobControls';
 import { KIOSK_FAMILIES } from './kiosk/per-family';
 import { MachineProblems } from './MachineProblems';
 import { KioskPage } from './pages';
@@ -126,7 +126,13 @@ function MachinePageBody({ rt, tab }: { rt: MachineRuntime; tab: string | null }
       )}
       <MachineProblems rt={rt} LoginForm={LoginForm} showPath />
       {/* The same job control row as the kiosk's, in every family, above every tab. */}
-      {session && family && <JobControls session={session} family={family} />}
+      {/* While the family's code loads: the same row, disabled, "Connecting…". */}
+      {family &&
+        (session ? (
+          <JobControls session={session} family={family} />
+        ) : (
+          !rt.error && <PendingJobControls family={family} />
+        ))}
       {/* The sections are URLs (bookmarkable): links, the current one marked aria-current. */}
       <nav className="tabs" aria-label="Machine sections">
         {tabs.map((t) => (

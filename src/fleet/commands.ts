@@ -354,8 +354,8 @@ export class CommandRunner {
       const doubt = this.doubt(snap);
       if (doubt) return doubt;
     }
-    if (snap.link !== 'online' && !(stop && snap.link !== 'connecting'))
-      return 'The machine is not connected: commands are not queued';
+    if (snap.link === 'connecting') return 'Connecting… (nothing is sent before the machine answers)';
+    if (snap.link !== 'online' && !stop) return 'The machine is not connected: commands are not queued';
     if (this.state.getState().inFlight[cmd.id]) return 'Already being sent';
     const avail = cmd.available?.(snap) ?? true;
     return avail === true ? null : avail;

@@ -1,9 +1,10 @@
-import { useState, useSyncExternalStore } from 'react';
+import { useId, useState, useSyncExternalStore, type ReactNode } from 'react';
 import type { AnyCommand } from '../../fleet/commands';
 import type { MachineSession } from '../../fleet/contract';
 import { CommandButton, useRole } from '../../fleet/react';
 import { roleAtLeast } from '../../fleet/types';
-import { JOB_CONTROL_WORDS, type JobControlKind, type KioskFamily } from './per-family';
+import { Button } from '../../ui';
+import { JOB_CONTROL_ROLE, JOB_CONTROL_WORDS, type JobControlKind, type KioskFamily } from './per-family';
 
 /** A touch screen (also one beside a mouse: a tablet with a keyboard case). */
 const COARSE = '(pointer: coarse), (any-pointer: coarse)';
@@ -89,14 +90,9 @@ export function JobControls({
     variant: 'secondary' | 'primary' | 'danger',
   ) => {
     if (!cmd || !roleAtLeast(role, cmd.role)) return null;
-    const term = family.terms[which];
     const word = JOB_CONTROL_WORDS[which];
     return (
-      <div
-        className={kiosk ? `kiosk-control kiosk-${which}` : `job-control job-${which}`}
-        data-kiosk={kiosk ? which : undefined}
-        data-job={which}
-      >
+      <Control which={which} family={family} kiosk={kiosk}>
         <CommandButton
           runner={runner}
           snapshot={snapshot}
@@ -120,33 +116,137 @@ export function JobControls({
         >
           {word}
         </CommandButton>
-        {term && term !== word && (
-          <span className="job-term small ui-muted" data-testid={`job-term-${which}`}>
-            {term}
-          </span>
-        )}
-      </div>
+      </Control>
     );
   };
   return (
-    <section
-      className={kiosk ? 'kiosk-controls' : 'job-controls'}
-      aria-label="Job controls"
-      data-testid="job-controls"
+    <Row
+      kiosk={kiosk}
+      pause={control(pause, 'pause', 'primary')}
+      resume={control(resume, 'resume', 'primary')}
+      stop={control(stop, 'stop', 'danger')}
+      estop={control(estop, 'estop', 'danger')}
     >
-      <div className={kiosk ? 'kiosk-job-controls' : 'job-controls-run'}>
-        {control(pause, 'pause', 'primary')}
-        {control(resume, 'resume', 'primary')}
-      </div>
-      <div className={kiosk ? 'kiosk-stop-controls' : 'job-controls-stop'}>
-        {control(stop, 'stop', 'danger')}
-        {control(estop, 'estop', 'danger')}
-      </div>
       {said && (
         <p className="job-said" role="status" data-testid="job-said" data-which={said.which}>
           {said.text}
         </p>
       )}
+    </Row>
+  );
+}
+
+/** Until the machine's family code is loaded (the kiosk's first paint): why nothing can be sent yet. */
+export const CONNECTING_WORDS = 'Connecting…';
+
+/**
+ * The job control row before the machine's family code has loaded: the same controls in the same
+ * places, stop included, from the first paint — disabled, each saying "Connecting…" — so that the
+ * row does not appear out of nothing a second or three later (and nothing shifts under a finger).
+ * A tap sends nothing; nothing here takes the focus. Replaced by `JobControls` once the session
+ * exists (whose buttons say "Connecting…" until the machine answers: fleet/commands.ts).
+ */
+export function PendingJobControls({ family, kiosk = false }: { family: KioskFamily; kiosk?: boolean }) {
+  const role = useRole();
+  if (!roleAtLeast(role, JOB_CONTROL_ROLE)) return null;
+  const control = (which: JobControlKind, variant: 'primary' | 'danger') => (
+    <Control which={which} family={family} kiosk={kiosk}>
+      <PendingButton which={which} variant={variant} />
+    </Control>
+  );
+  return (
+    <Row
+      kiosk={kiosk}
+      pending
+      pause={control('pause', 'primary')}
+      resume={control('resume', 'primary')}
+      stop={control('stop', 'danger')}
+      estop={family.estop ? control('estop', 'danger') : null}
+    />
+  );
+}
+
+/** A control of the row not usable yet: faint, its reason as text under it (as CommandButton's). */
+function PendingButton({ which, variant }: { which: JobControlKind; variant: 'primary' | 'danger' }) {
+  const reasonId = useId();
+  const stop = which === 'stop' || which === 'estop' || undefined;
+  return (
+    <span className="ui-cmd unavailable">
+      <Button
+        variant={variant}
+        aria-disabled
+        aria-describedby={reasonId}
+        title={CONNECTING_WORDS}
+        data-testid={`job-pending-${which}`}
+        data-stop={stop}
+      >
+        {JOB_CONTROL_WORDS[which]}
+      </Button>
+      <span className="ui-cmd-reason small" id={reasonId}>
+        {CONNECTING_WORDS}
+      </span>
+    </span>
+  );
+}
+
+/** One control's place in the row, with the firmware's own term under it. */
+function Control({
+  which,
+  family,
+  kiosk,
+  children,
+}: {
+  which: JobControlKind;
+  family: KioskFamily;
+  kiosk: boolean;
+  children: ReactNode;
+}) {
+  const term = family.terms[which];
+  const word = JOB_CONTROL_WORDS[which];
+  return (
+    <div
+      className={kiosk ? `kiosk-control kiosk-${which}` : `job-control job-${which}`}
+      data-kiosk={kiosk ? which : undefined}
+      data-job={which}
+    >
+      {children}
+      {term && term !== word && (
+        <span className="job-term small ui-muted" data-testid={`job-term-${which}`}>
+          {term}
+        </span>
+      )}
+    </div>
+  );
+}
+
+/** The row: pause and resume on one side, stop job and emergency stop on the other. */
+function Row(props: {
+  kiosk: boolean;
+  pending?: boolean;
+  pause: ReactNode;
+  resume: ReactNode;
+  stop: ReactNode;
+  estop: ReactNode;
+  children?: ReactNode;
+}) {
+  const { kiosk } = props;
+  return (
+    <section
+      className={kiosk ? 'kiosk-controls' : 'job-controls'}
+      aria-label="Job controls"
+      aria-busy={props.pending || undefined}
+      data-testid="job-controls"
+      data-pending={props.pending || undefined}
+    >
+      <div className={kiosk ? 'kiosk-job-controls' : 'job-controls-run'}>
+        {props.pause}
+        {props.resume}
+      </div>
+      <div className={kiosk ? 'kiosk-stop-controls' : 'job-controls-stop'}>
+        {props.stop}
+        {props.estop}
+      </div>
+      {props.children}
     </section>
   );
 }

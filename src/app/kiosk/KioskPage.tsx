@@ -11,7 +11,7 @@ import { ErrorBoundary } from '../ErrorBoundary';
 import { MachineProblems } from '../MachineProblems';
 import { cardOf, firstScreenShown } from '../first-screen';
 import { LINK_TONE, shownState } from '../status';
-import { JobControls } from './JobControls';
+import { JobControls, PendingJobControls } from './JobControls';
 import { KIOSK_FAMILIES } from './per-family';
 import { useScreenWakeLock, type WakeStatus } from './wake-lock';
 
@@ -133,7 +133,13 @@ export function KioskPage({ rt }: { rt: MachineRuntime }) {
           )}
         </section>
 
-        {session && family && <JobControls session={session} family={family} kiosk />}
+        {/* The row from the first paint: disabled, "Connecting…", until the family's code is here. */}
+        {family &&
+          (session ? (
+            <JobControls session={session} family={family} kiosk />
+          ) : (
+            !rt.error && <PendingJobControls family={family} kiosk />
+          ))}
         {session && !family && (
           <p className="ui-muted kiosk-note" data-testid="kiosk-no-controls">
             This machine takes no commands from the console: use its own panel.

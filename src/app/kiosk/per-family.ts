@@ -1,10 +1,17 @@
 import type { ComponentType } from 'react';
 import type { MachineSession, TabProps } from '../../fleet/contract';
 import { lazyView } from '../../fleet/lazy';
-import type { MachineKind } from '../../fleet/types';
+import type { MachineKind, Role } from '../../fleet/types';
 
 /** A job control of the shared row (src/app/kiosk/JobControls.tsx). */
 export type JobControlKind = 'pause' | 'resume' | 'stop' | 'estop';
+
+/**
+ * The role every family declares for its job controls (pause, resume, stop job, emergency stop):
+ * the row shown before a family's code has loaded is shown from it (per-family.test.ts checks it
+ * against the declarations).
+ */
+export const JOB_CONTROL_ROLE: Role = 'operator';
 
 /**
  * One vocabulary across families: the row's words. The firmware's own term for each is the

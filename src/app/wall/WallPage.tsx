@@ -1,5 +1,5 @@
 import './wall.css';
-import { memo, useEffect, useMemo, useRef, useState } from 'react';
+import { memo, useEffect, useId, useMemo, useRef, useState } from 'react';
 import { useStore } from 'zustand';
 import { FAMILY_LABELS } from '../../controllers';
 import { authStore } from '../../fleet/auth';
@@ -23,11 +23,21 @@ import {
   wallColumns,
   type WallAlarm,
 } from './alarms';
+import {
+  useWallGrouping,
+  wallSectionLayout,
+  wallSections,
+  type SectionPlace,
+  type WallGrouping,
+} from './prefs';
 
 /**
  * The wall screen (`/wall`): the whole fleet for a TV, large type, read only — no links, no
  * buttons, no inputs, whoever is signed in. When machines are in alarm it shows them one after
  * the other, each for `SPOTLIGHT_MS`, beside the fleet; with none it shows the fleet alone.
+ * Grouped by bay (`/wall?group=bay`, or the view control), one section per bay. The view control
+ * is there only while someone is at the screen (a mouse moved, a key pressed): the TV's picture
+ * has none.
  */
 export function WallPage() {
   const mode = useStore(authStore, (s) => s.mode);
@@ -93,9 +103,18 @@ function Wall({ machines }: { machines: MachineInfo[] }) {
     return () => clearInterval(t);
   }, [inAlarm]);
   const spotInfo = spot ? machines.find((m) => m.id === spot) : undefined;
-  // The fleet fills the screen (or the part beside the machine in alarm) without scrolling.
-  const cols = wallColumns(machines.length, spotInfo ? 0.8 : 1.9);
-  const rows = Math.ceil(machines.length / cols);
+  const [grouping, setGrouping] = useWallGrouping();
+  const present = useSomeoneAtTheScreen();
+  const aspect = spotInfo ? 0.8 : 1.9;
+  const card = (m: MachineInfo, inSection: boolean) => (
+    <WallCard
+      key={m.id}
+      info={m}
+      highlighted={m.id === spotInfo?.id}
+      server={serverAlarms.get(m.id)}
+      inSection={inSection}
+    />
+  );
   return (
     <div className={`wall${spotInfo ? ' has-spotlight' : ''}`} data-testid="wall">
       <WallHeader
@@ -103,6 +122,7 @@ function Wall({ machines }: { machines: MachineInfo[] }) {
         inAlarm={inAlarm.length}
         unreadable={unreadable}
         spot={spotInfo ? inAlarm.indexOf(spotInfo.id) : -1}
+        view={present ? <WallView grouping={grouping} onChange={setGrouping} /> : null}
       />
       <div className="wall-body">
         {spotInfo && (
@@ -115,26 +135,155 @@ function Wall({ machines }: { machines: MachineInfo[] }) {
             <WallCard key={spotInfo.id} info={spotInfo} big server={serverAlarms.get(spotInfo.id)} />
           </section>
         )}
-        <div
-          className="wall-grid"
-          style={{
-            gridTemplateColumns: `repeat(${cols}, minmax(0, 1fr))`,
-            gridTemplateRows: `repeat(${rows}, minmax(0, 1fr))`,
-          }}
-          data-testid="wall-grid"
-        >
-          {machines.map((m) => (
-            <WallCard
-              key={m.id}
-              info={m}
-              highlighted={m.id === spotInfo?.id}
-              server={serverAlarms.get(m.id)}
-            />
-          ))}
-        </div>
+        {grouping === 'bay' ? (
+          <BaySections machines={machines} aspect={aspect} card={card} />
+        ) : (
+          <FleetGrid machines={machines} aspect={aspect} card={card} />
+        )}
       </div>
     </div>
   );
+}
+
+type CardOf = (m: MachineInfo, inSection: boolean) => React.ReactNode;
+
+/** The fleet in one grid that fills the screen (or the part beside the machine in alarm) without scrolling. */
+function FleetGrid({ machines, aspect, card }: { machines: MachineInfo[]; aspect: number; card: CardOf }) {
+  const cols = wallColumns(machines.length, aspect);
+  const rows = Math.ceil(machines.length / cols);
+  return (
+    <div
+      className="wall-grid"
+      style={{
+        gridTemplateColumns: `repeat(${cols}, minmax(0, 1fr))`,
+        gridTemplateRows: `repeat(${rows}, minmax(0, 1fr))`,
+      }}
+      data-testid="wall-grid"
+    >
+      {machines.map((m) => card(m, false))}
+    </div>
+  );
+}
+
+/**
+ * One section per bay, its name whole as the heading, the machines without one last ("No bay"):
+ * one grid for all (the sections share its columns, small bays side by side), still without
+ * scrolling.
+ */
+function BaySections({ machines, aspect, card }: { machines: MachineInfo[]; aspect: number; card: CardOf }) {
+  const sections = useMemo(() => wallSections(machines), [machines]);
+  const layout = wallSectionLayout(
+    sections.map((s) => s.machines.length),
+    aspect,
+  );
+  return (
+    <div
+      className="wall-grid wall-sections"
+      style={{
+        gridTemplateColumns: `repeat(${layout.columns}, minmax(0, 1fr))`,
+        gridTemplateRows: layout.rowsTemplate,
+      }}
+      data-testid="wall-grid"
+    >
+      {sections.map((s, i) => (
+        <BaySection key={s.key} label={s.label} place={layout.places[i]}>
+          {s.machines.map((m) => card(m, true))}
+        </BaySection>
+      ))}
+    </div>
+  );
+}
+
+function BaySection({
+  label,
+  place,
+  children,
+}: {
+  label: string;
+  place: SectionPlace | undefined;
+  children: React.ReactNode;
+}) {
+  const id = useId();
+  return (
+    <section
+      className="wall-section"
+      style={
+        place && {
+          gridColumn: `${place.column} / span ${place.columns}`,
+          gridRow: `${place.row} / span ${place.rows + 1}`,
+        }
+      }
+      aria-labelledby={id}
+      data-testid={`wall-section-${label}`}
+    >
+      <h2 className="wall-section-head" id={id}>
+        {label}
+      </h2>
+      {children}
+    </section>
+  );
+}
+
+const GROUPING_WORDS: Record<WallGrouping, string> = { none: 'One grid', bay: 'By bay' };
+
+/** The wall's one view control: shown while someone is at the screen, never focused by itself. */
+function WallView({ grouping, onChange }: { grouping: WallGrouping; onChange: (g: WallGrouping) => void }) {
+  return (
+    <label className="wall-view">
+      Group
+      <select
+        value={grouping}
+        onChange={(e) => onChange(e.target.value === 'bay' ? 'bay' : 'none')}
+        data-testid="wall-group"
+      >
+        {(Object.keys(GROUPING_WORDS) as WallGrouping[]).map((g) => (
+          <option key={g} value={g}>
+            {GROUPING_WORDS[g]}
+          </option>
+        ))}
+      </select>
+    </label>
+  );
+}
+
+/** The view control stays this long after the last sign of someone at the screen. */
+const PRESENT_MS = 15_000;
+
+/**
+ * Whether someone is at the wall's screen: a mouse moved (a real move: a browser's own zero-length
+ * moves do not count), a touch, a key. For `PRESENT_MS` after the last, or while the view control
+ * has the focus.
+ */
+function useSomeoneAtTheScreen(): boolean {
+  const [present, setPresent] = useState(false);
+  useEffect(() => {
+    let timer: ReturnType<typeof setTimeout> | null = null;
+    const arm = () => {
+      if (timer) clearTimeout(timer);
+      timer = setTimeout(() => {
+        timer = null;
+        if (document.activeElement?.closest('.wall-view')) arm();
+        else setPresent(false);
+      }, PRESENT_MS);
+    };
+    const seen = () => {
+      setPresent(true);
+      arm();
+    };
+    const moved = (e: PointerEvent) => {
+      if (e.pointerType !== 'mouse' || e.movementX !== 0 || e.movementY !== 0) seen();
+    };
+    window.addEventListener('pointermove', moved);
+    window.addEventListener('pointerdown', seen);
+    window.addEventListener('keydown', seen);
+    return () => {
+      window.removeEventListener('pointermove', moved);
+      window.removeEventListener('pointerdown', seen);
+      window.removeEventListener('keydown', seen);
+      if (timer) clearTimeout(timer);
+    };
+  }, []);
+  return present;
 }
 
 function WallHeader({
@@ -142,11 +291,13 @@ function WallHeader({
   inAlarm,
   spot,
   unreadable,
+  view,
 }: {
   total: number;
   inAlarm: number;
   spot: number;
   unreadable: boolean;
+  view: React.ReactNode;
 }) {
   const now = useNow(1000);
   return (
@@ -170,6 +321,7 @@ function WallHeader({
         {inAlarm > 1 && spot >= 0 && ` · showing ${spot + 1} of ${inAlarm}`}
         {inAlarm > 0 && unreadable && ' · cannot read the alarms'}
       </span>
+      {view}
       <time className="wall-clock" data-testid="wall-clock">
         {formatTime(now)}
       </time>
@@ -183,6 +335,8 @@ const WallCard = memo(function WallCard(props: {
   highlighted?: boolean;
   /** The alarm centre's alarm of this machine (when this page's own view has none). */
   server?: WallAlarm | undefined;
+  /** In its bay's section (whose heading names the bay). */
+  inSection?: boolean;
 }) {
   const rt = getRuntime(props.info.id);
   if (!rt) return null;
@@ -195,12 +349,14 @@ function WallCardBody({
   big,
   highlighted,
   server,
+  inSection,
 }: {
   info: MachineInfo;
   rt: MachineRuntime;
   big?: boolean;
   highlighted?: boolean;
   server?: WallAlarm | undefined;
+  inSection?: boolean;
 }) {
   const s = useSnapshot(rt, cardFields);
   const local = inAlarmForWall(s.alarms) ? mostSevereAlarm(s.alarms.filter((a) => !a.acknowledged)) : null;
@@ -218,14 +374,19 @@ function WallCardBody({
       aria-label={info.name}
     >
       <div className="wall-card-head">
-        <h2 className="wall-name">{info.name}</h2>
+        {inSection ? <h3 className="wall-name">{info.name}</h3> : <h2 className="wall-name">{info.name}</h2>}
         <Badge tone={shown.tone} testId="wall-activity">
           {shown.words}
         </Badge>
       </div>
+      {/* The bay whole, on its line (its section's heading names it when grouped by bay). */}
+      {info.group && !inSection && (
+        <div className="wall-bay" data-testid="wall-bay">
+          {info.group}
+        </div>
+      )}
       <div className="wall-sub">
         {FAMILY_LABELS[info.kind]}
-        {info.group && ` · ${info.group}`}
         {info.simulated && ' · simulated'}
       </div>
       {alarm ? (
