@@ -19,6 +19,7 @@ import type { Webhook } from './webhook';
 import type { History } from './history';
 import { createHistoryApi, HISTORY_API_PATH } from './history/api';
 import { retentionSchema, shiftsSchema } from './settings';
+import { createTemperaturesApi, TEMPERATURES_API_PATH, TemperatureStore } from './temperatures';
 
 const loginSchema = z.object({ name: z.string().min(1).max(64), password: z.string().min(1).max(1024) });
 const elevateSchema = z.object({ name: z.string().min(1).max(64), pin: z.string().min(1).max(64) });
@@ -56,6 +57,8 @@ export interface ApiStores {
   history?: History;
   /** What the gateway's watch knows of a machine now (watch.ts); absent: nothing is watched. */
   watched?: (id: string) => Watched | null;
+  /** The last minutes of temperatures (temperatures.ts); absent: every machine has none. */
+  temperatures?: TemperatureStore;
 }
 
 /** A machine's watch summary as `GET /api/machines` gives it (the fleet page's first screen). */
@@ -130,6 +133,10 @@ export function createApi(ctx: GatewayContext, stores: ApiStores = createAlarmSt
   } = ctx;
   const limits = limiter.opts;
   const simApi = createSimApi(ctx);
+  const temperaturesApi = createTemperaturesApi(
+    ctx,
+    stores.temperatures ?? new TemperatureStore(now, ctx.scrub),
+  );
   /** Where each user logged in from: the per-user backstop spares those addresses. */
   const logins = new LoginHistory(now);
   /** PIN locks already written to the audit log (limiter key → when), one entry per lock. */
@@ -689,6 +696,11 @@ export function createApi(ctx: GatewayContext, stores: ApiStores = createAlarmSt
       default: {
         if (historyApi && HISTORY_API_PATH.test(url.pathname)) {
           await historyApi(req, res, url);
+          return;
+        }
+        const temps = TEMPERATURES_API_PATH.exec(url.pathname);
+        if (temps) {
+          temperaturesApi(req, res, url, temps[1] ?? '');
           return;
         }
         const sim = SIM_API_PATH.exec(url.pathname);

@@ -12,6 +12,8 @@ import { createWsProxy } from './proxy-ws';
 import { createReadSocket, READ_SOCKET_PATH, type ReadSocketHeld } from './read-socket';
 import { type AlarmCentre, createAlarmStores } from './alarms';
 import { MachineWatch } from './watch';
+import { TemperatureStore } from './temperatures';
+import { StreamHubs } from './streams';
 import { createHistory, type History } from './history';
 import type { Webhook } from './webhook';
 import { endHeldSessions } from './held-session';
@@ -107,9 +109,12 @@ export function createGateway(opts: GatewayOptions): Gateway {
   const stopHistoryFeed = ctx.onRecord((e) => history.recorded(e));
   // The watch of each machine, by id (filled below): its summary goes with `GET /api/machines`.
   const watchById = new Map<string, MachineWatch>();
+  // The last minutes of temperatures, sampled from the watch's reads (temperatures.ts), in memory.
+  const temperatures = new TemperatureStore(ctx.now, scrub);
   const api = createApi(ctx, {
     ...stores,
     history,
+    temperatures,
     watched: (id) => {
       const w = watchById.get(id);
       return w ? { summary: w.current, lastSeen: w.lastSeen } : null;
@@ -124,9 +129,31 @@ export function createGateway(opts: GatewayOptions): Gateway {
     for (const m of config.machines) {
       const decl = ctx.hintsOf(m).sharing?.watch;
       if (!decl) continue;
+      const temps = decl.temperatures
+        ? temperatures.sampler(m.id, {
+            decl: () => decl.temperatures,
+            model: () => {
+              const path = decl.stream?.path;
+              return path ? (ctx.streams.find(StreamHubs.key(m.id, path, ''))?.merged ?? null) : null;
+            },
+          })
+        : null;
       const w = new MachineWatch(m.id, decl, {
-        read: (pathAndQuery) => watchRead(m, pathAndQuery),
-        hold: (path, onFrame, onEnd) => holdStream(m, path, onFrame, onEnd),
+        read: async (pathAndQuery) => {
+          const a = await watchRead(m, pathAndQuery);
+          if (!a.gateway) temps?.polled(pathAndQuery, a.status, a.body);
+          return a;
+        },
+        hold: (path, onFrame, onEnd) =>
+          holdStream(
+            m,
+            path,
+            (frame) => {
+              onFrame(frame);
+              temps?.frame(frame);
+            },
+            onEnd,
+          ),
         // Alarm words may echo a machine's secret: scrubbed before the list, the page, the webhook.
         observe: (prev, next) => {
           alarms.observe(m, prev, {
@@ -154,6 +181,7 @@ export function createGateway(opts: GatewayOptions): Gateway {
       watchById.set(m.id, w);
       w.start();
     }
+    temperatures.start();
   }
 
   // ---------------------------------------------------------------- entry points
@@ -244,6 +272,7 @@ export function createGateway(opts: GatewayOptions): Gateway {
     if (demoJobs) clearTimeout(demoJobs);
     ctx.refusals.dispose();
     for (const w of watches) w.stop();
+    temperatures.stop();
     stopHistoryFeed();
     history.close(); // last-seen times written, the file closed (synchronous)
     ctx.sessions.close(); // the kept sessions' file (auth.ts)

@@ -253,6 +253,11 @@ export class StreamHub {
     }
   }
 
+  /** A model stream's merged model now (null until the full model came, and for fan-out streams). */
+  get merged(): JsonRecord | null {
+    return this.ended ? null : this.model;
+  }
+
   get viewerCount(): number {
     return this.viewers.size;
   }

@@ -284,6 +284,28 @@ export interface WatchDecl {
   poll?: { path: string; read(status: number, body: string): WatchSummary | Error };
   /** A shared stream kept open while the watch runs; `read` turns its frames into summaries (null: no news). */
   stream?: { path: string; read(frame: string): WatchNews | null };
+  /**
+   * The temperatures the gateway keeps for the charts (gateway/temperatures.ts), read from what
+   * the watch already reads (no read of their own): the poll's answer, a frame of the stream, or
+   * the merged model of a model stream. Null: nothing read for certain. Never throws.
+   */
+  temperatures?: TemperatureDecl;
+}
+
+/** One sensor's reading as a family reads it (untrusted: the gateway checks and bounds it). */
+export interface TemperatureReading {
+  /** Stable per sensor within a machine (Duet: the heater index; Prunt: "group · name"). */
+  key: string;
+  /** What the chart calls it ("Bed", "Tool 0"). */
+  name: string;
+  /** °C; null: no sensor or no reading now. */
+  value: number | null;
+}
+
+export interface TemperatureDecl {
+  fromPoll?(path: string, status: number, body: string): TemperatureReading[] | null;
+  fromFrame?(frame: string): TemperatureReading[] | null;
+  fromModel?(model: JsonRecord): TemperatureReading[] | null;
 }
 
 /** An answer to a request the gateway made itself (held sessions). Header names are lower-case. */

@@ -19,6 +19,8 @@ export const TimeSeriesChart = memo(function TimeSeriesChart(props: {
   height?: number;
   unit?: string;
   testId?: string;
+  /** Said under the chart (where its earlier readings came from, or why there are none). */
+  note?: string | null;
 }) {
   const width = 600;
   const height = props.height ?? 180;
@@ -44,14 +46,28 @@ export const TimeSeriesChart = memo(function TimeSeriesChart(props: {
   const x = (t: number) => padL + ((t - t0) / props.windowMs) * (width - padL - 4);
   const y = (v: number) => 4 + (1 - (v - min) / (max - min)) * (height - padB - 8);
   const ticks = [min, (min + max) / 2, max];
+  // What the chart holds, said (and readable by tests): the most readings of one series in the window.
+  let readings = 0;
+  for (const s of props.series) {
+    let n = 0;
+    for (const [t] of s.points) if (t >= t0) n++;
+    readings = Math.max(readings, n);
+  }
+  const span =
+    props.windowMs % 60_000 === 0
+      ? `${props.windowMs / 60_000} min`
+      : `${Math.round(props.windowMs / 1000)} s`;
+  const summary = `Last ${span}: ${readings} reading${readings === 1 ? '' : 's'}${
+    props.series.length > 1 ? ` of ${props.series.length} sensors` : ''
+  }`;
   return (
-    <div data-testid={props.testId}>
+    <div data-testid={props.testId} data-readings={readings}>
       <svg
         className="ui-chart"
         viewBox={`0 0 ${width} ${height}`}
         preserveAspectRatio="none"
         role="img"
-        aria-label="chart"
+        aria-label={summary}
       >
         {ticks.map((v, i) => (
           <g key={i}>
@@ -94,6 +110,7 @@ export const TimeSeriesChart = memo(function TimeSeriesChart(props: {
           </span>
         ))}
       </div>
+      {props.note ? <p className="ui-muted">{props.note}</p> : null}
     </div>
   );
 });

@@ -22,6 +22,7 @@ import {
   type JsonObject,
 } from './patch';
 import { activityOf, alarmsOf, jobSummary } from './snapshot';
+import { duetTemperatureDecl } from './temperatures';
 import { machineStatus, objectModelSchema } from './wire';
 
 /**
@@ -252,6 +253,7 @@ export const duetWatch: WatchDecl = {
     },
   },
   stream: { path: '/machine', read: readModelFrame },
+  temperatures: duetTemperatureDecl,
 };
 
 export const duetSharing: SharingHints = {
@@ -295,6 +297,7 @@ export const rrfWatch: WatchDecl = {
       return r.refused === null ? summaryOfModel(r.model) : new Error(`GET /rr_model: ${r.refused}`);
     },
   },
+  temperatures: duetTemperatureDecl,
 };
 
 /**
@@ -351,5 +354,6 @@ function watchFor(state: DuetApiState, base: WatchDecl | undefined): WatchDecl |
     get stream() {
       return state.api === 'dsf' ? base.stream : undefined;
     },
+    temperatures: base.temperatures,
   };
 }

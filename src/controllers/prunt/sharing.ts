@@ -9,6 +9,7 @@ import {
 } from '../../fleet/contract';
 import { FLEET_DIVISOR, TICK_MS } from './state';
 import { activityOf, alarmsOf, derive, normalizeFlat, type StatusModule, type StatusValues } from './status';
+import { pruntTemperatureDecl } from './temperatures';
 import { wsMessageSchema } from './wire';
 
 /**
@@ -157,6 +158,7 @@ export function readPruntFrame(frame: string): Partial<WatchSummary> | null {
 export const pruntWatch: WatchDecl = {
   everyMs: WATCH_EVERY_MS,
   stream: { path: '/websocket/everything', read: readPruntFrame },
+  temperatures: pruntTemperatureDecl,
 };
 
 export const pruntSharing: SharingHints = {

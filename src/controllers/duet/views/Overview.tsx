@@ -15,6 +15,7 @@ import {
   type Tone,
 } from '../../../ui';
 import { TimeSeriesChart } from '../../../ui/TimeSeriesChart';
+import { earlierNote, useEarlierTemperatures, withEarlier } from '../../../fleet/server-temperatures';
 import { baseName } from '../client';
 import type { DuetSession } from '../session';
 import { heaterName, isPrinting, jobProgress, statusWords } from '../snapshot';
@@ -153,7 +154,20 @@ function HeatersPanel({ session }: { session: DuetSession }) {
       )
     : [];
   const history = useStoreSelect(session.store, (s) => s.history);
-  const series: Series[] = rows.map((r) => ({ name: r.name, points: history[r.i] ?? [] }));
+  // The last minutes the console's server kept (by heater index, as `history`), then the live points.
+  const earlier = useEarlierTemperatures(ctx.machine.id, ctx.now);
+  const series: Series[] = m
+    ? rows.map((r) => ({
+        name: r.name,
+        points: withEarlier(
+          earlier.state === 'ok' ? earlier.byKey.get(String(r.i))?.points : undefined,
+          history[r.i] ?? [],
+        ),
+      }))
+    : // No model yet (connecting): the server's readings by the names it kept.
+      earlier.state === 'ok'
+      ? [...earlier.byKey.values()].map((e) => ({ name: e.name, points: e.points }))
+      : [];
   return (
     <Panel title="Heaters" testId="duet-heaters">
       <DataTable
@@ -207,6 +221,7 @@ function HeatersPanel({ session }: { session: DuetSession }) {
         unit="°C"
         height={160}
         testId="duet-temp-chart"
+        note={earlierNote(earlier)}
       />
     </Panel>
   );

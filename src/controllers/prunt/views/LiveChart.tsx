@@ -3,6 +3,12 @@ import { useStore } from 'zustand';
 import { Button, type Series } from '../../../ui';
 import { TimeSeriesChart } from '../../../ui/TimeSeriesChart';
 import type { PruntSession } from '../session';
+import {
+  earlierNote,
+  useEarlierTemperatures,
+  withEarlier,
+  type Point,
+} from '../../../fleet/server-temperatures';
 
 const WINDOWS = [
   [60, '1 min'],
@@ -28,8 +34,12 @@ export function LiveChart(props: { session: PruntSession }) {
   const [kind, setKind] = useState<Kind>('temperature');
   const [frozen, setFrozen] = useState<number | null>(null);
   const shownVersion = frozen ?? version;
+  // The last minutes the console's server kept (temperatures only), then the live points.
+  const ctx = props.session.ctx;
+  const earlier = useEarlierTemperatures(ctx.machine.id, ctx.now);
   const series = useMemo(() => {
     const out: Series[] = [];
+    const kept = kind === 'temperature' && earlier.state === 'ok' ? earlier.byKey : null;
     const t = h.t;
     const end = t[t.length - 1] ?? 0;
     const from = end - windowS;
@@ -41,17 +51,22 @@ export function LiveChart(props: { session: PruntSession }) {
       if (kindOf(n) !== kind) continue;
       const col = h.cols.get(n);
       if (!col) continue;
-      const points: Array<readonly [number, number]> = [];
+      const points: Point[] = [];
       for (let i = start; i < t.length; i += step) {
         const v = col[i];
         if (v !== null && v !== undefined) points.push([(t[i] as number) * 1000, v]);
       }
-      out.push({ name: n.split(' · ').pop() ?? n, points });
+      out.push({ name: n.split(' · ').pop() ?? n, points: withEarlier(kept?.get(n)?.points, points) });
     }
+    // Sensors the server kept that no live tick has named yet (the page just opened).
+    if (kept)
+      for (const [key, e] of kept)
+        if (!names.includes(key) && kindOf(key) === 'temperature')
+          out.push({ name: e.name, points: e.points });
     return out;
     // eslint-disable-next-line react-hooks/exhaustive-deps
-  }, [shownVersion, names, windowS, kind]);
-  const now = ((h.t[h.t.length - 1] ?? Date.now() / 1000) as number) * 1000;
+  }, [shownVersion, names, windowS, kind, earlier]);
+  const now = h.t.length ? (h.t[h.t.length - 1] as number) * 1000 : ctx.now();
   return (
     <div data-testid="prunt-chart">
       <div className="ui-row" style={{ marginBottom: 8 }}>
@@ -82,13 +97,17 @@ export function LiveChart(props: { session: PruntSession }) {
         </Button>
       </div>
       {series.length === 0 ? (
-        <p className="ui-muted">No data yet.</p>
+        <p className="ui-muted">
+          {kind === 'temperature' ? (earlierNote(earlier) ?? 'No data yet.') : 'No data yet.'}
+        </p>
       ) : (
         <TimeSeriesChart
           series={series}
           windowMs={windowS * 1000}
           now={now}
           unit={kind === 'temperature' ? '°C' : kind === 'position' ? 'mm' : ''}
+          testId="prunt-live-chart"
+          note={kind === 'temperature' ? earlierNote(earlier) : null}
         />
       )}
     </div>
