@@ -131,3 +131,123 @@ test.describe('issue 33 (10): every emergency stop asks first on touch', () => {
     await expect(page.getByTestId('machine-activity')).toHaveText('Running');
   });
 });
+
+/** Developer and protocol words no page may show (outside a console's own transcript). */
+const PATTERNS: Array<[string, RegExp]> = [
+  ['a raw firmware status string', /\bok:[A-Z_]{3,}/],
+  ['a g2core override token', /\b(mfoe|mtoe|ssoe) ?= ?\d/],
+  ['a raw exponent number', /(?<![\w.])-?\d+(\.\d+)?[eE][+-]?\d+\b/],
+  ['undefined / null / NaN', /\b(undefined|null|NaN)\b/],
+  ['a camelCase key', /\b[a-z]+[A-Z][a-z]+[A-Za-z]*\b/],
+  ['a doubled word', /\b([A-Za-z]{3,}) \1\b/i],
+  ['[object Object]', /\[object \w+\]/],
+];
+/** Brand names spelled in camel case by their makers. */
+const ALLOWED = new Set([
+  'xTool',
+  'RepRapFirmware',
+  'PrusaSlicer',
+  'SuperSlicer',
+  'OrcaSlicer',
+  'iPad',
+  'macOS',
+]);
+
+/** What the page says (its text and its fields), without a console's transcript of the wire. */
+async function pageWords(page: Page): Promise<string> {
+  return page.evaluate(() => {
+    const root = document.body.cloneNode(true) as HTMLElement;
+    for (const el of root.querySelectorAll('pre, code, textarea, [data-transcript], script, style, noscript'))
+      el.remove();
+    document.body.append(root);
+    root.style.position = 'absolute';
+    const text = root.innerText;
+    root.remove();
+    const values = [
+      ...document.querySelectorAll<HTMLInputElement>('input[type="text"], input:not([type])'),
+    ].map((i) => i.value);
+    return `${text}\n${values.join('\n')}`;
+  });
+}
+
+function findings(text: string): string[] {
+  const found: string[] = [];
+  for (const line of text.split('\n'))
+    for (const [what, re] of PATTERNS) {
+      const m = re.exec(line);
+      if (m && !(what === 'a camelCase key' && ALLOWED.has(m[0])))
+        found.push(`${what}: "${line.trim().slice(0, 120)}"`);
+    }
+  return found;
+}
+
+test.describe('issue 33 (13): no developer or protocol words on any family page', () => {
+  test.beforeEach(async ({ request }) => {
+    await resetSimulators(request);
+  });
+
+  test('g2core overrides in words: "Feed override: off", the firmware token only as a subtitle', async ({
+    page,
+  }) => {
+    await page.goto('/m/demo-g2core');
+    await expect(page.getByTestId('machine-link')).toHaveText('Online');
+    const off = page.getByTestId('g2-override-mfo-off');
+    await expect(off).toContainText('Feed override: off — the machine runs at 100 %');
+    await expect(off).toContainText('Feed override enable');
+    await expect(page.getByTestId('g2-override-mfo')).not.toContainText('mfoe = 0');
+    await page.getByTestId('g2-override-mfo').screenshot({ path: '/tmp/w13-g2-override.png' });
+  });
+
+  test('opening Prunt’s config writes no audit entry', async ({ page }) => {
+    const count = async () => {
+      const r = await page.request.get('/api/audit?machine=demo-prunt&type=command&limit=500');
+      expect(r.ok()).toBe(true);
+      const body = (await r.json()) as { entries?: Array<{ path?: string }>; total?: number };
+      return (body.entries ?? []).filter((e) => (e.path ?? '').startsWith('/config')).length;
+    };
+    const before = await count();
+    await page.goto('/m/demo-prunt');
+    await expect(page.getByTestId('machine-link')).toHaveText('Online');
+    const steppers = page
+      .getByRole('button', { name: 'Steppers', exact: true })
+      .or(page.getByRole('tab', { name: 'Steppers', exact: true }))
+      .first();
+    // The editor open (schema and values read), twice.
+    await section(page, 'Config').tap();
+    await expect(steppers).toBeVisible();
+    await page.reload();
+    await expect(page.getByTestId('machine-link')).toHaveText('Online');
+    await expect(steppers).toBeVisible();
+    await page.waitForTimeout(1000);
+    expect(await count()).toBe(before);
+    await page.goto('/audit');
+    await expect(page.getByTestId('audit-table')).toBeVisible();
+    await expect(page.getByTestId('audit-table')).not.toContainText('config values');
+  });
+
+  test('every section of every family, running and idle, and the fleet', async ({ page, request }) => {
+    test.setTimeout(240_000);
+    const found: string[] = [];
+    await page.goto('/');
+    await expect(page.getByText(/\d+ machines/).first()).toBeVisible();
+    await page.waitForTimeout(2000);
+    found.push(...findings(await pageWords(page)).map((f) => `fleet: ${f}`));
+    for (const id of ['demo-g2core', 'demo-xtool', 'demo-duet', 'demo-prunt', 'demo-touchcut']) {
+      for (const phase of ['idle', 'running'] as const) {
+        if (phase === 'running') await simulator(request, id, 'world', 'demo').catch(() => undefined);
+        await page.goto(`/m/${id}`);
+        await expect(page.getByTestId('machine-link')).toHaveText('Online');
+        const links = page.getByRole('navigation', { name: 'Machine sections' }).getByRole('link');
+        const names = (await links.allInnerTexts())
+          .map((n) => n.trim())
+          .filter((n) => n !== 'Console' && n !== 'Simulator');
+        for (const name of names) {
+          await section(page, name).tap();
+          await page.waitForTimeout(1200);
+          found.push(...findings(await pageWords(page)).map((f) => `${id} ${phase} ${name}: ${f}`));
+        }
+      }
+    }
+    expect([...new Set(found)]).toEqual([]);
+  });
+});
