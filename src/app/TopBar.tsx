@@ -2,6 +2,7 @@ import { useEffect, useRef, useState } from 'react';
 import { useStore } from 'zustand';
 import { familyPages } from '../controllers';
 import { authStore } from '../fleet/auth';
+import { estopConfirmDefault, setEstopConfirm, useEstopConfirm } from '../fleet/estop-confirm';
 import { Badge, Button } from '../ui';
 import { logout, sessionExtra } from './auth/api';
 import { PinUnlock } from './auth/UserControls';
@@ -154,6 +155,7 @@ export function TopBar({ route, activeAlarms }: { route: string; activeAlarms: n
             <option value="dark">Dark</option>
           </select>
         </label>
+        <EstopConfirmSwitch />
         {mode === 'secured' &&
           (user ? (
             <Button onClick={() => void logout().then(() => location.assign('/login'))}>Sign out</Button>
@@ -162,5 +164,35 @@ export function TopBar({ route, activeAlarms }: { route: string; activeAlarms: n
           ))}
       </div>
     </header>
+  );
+}
+
+/**
+ * This console's emergency-stop question (src/fleet/estop-confirm.ts): a switch in the menu, kept
+ * in this browser; on by default on touch screens. Every emergency stop and big STOP follows it.
+ */
+function EstopConfirmSwitch() {
+  const on = useEstopConfirm();
+  const touchDefault = estopConfirmDefault();
+  return (
+    <label className="menu-switch" data-testid="estop-confirm-setting">
+      <input
+        type="checkbox"
+        role="switch"
+        checked={on}
+        aria-checked={on}
+        onChange={(e) => setEstopConfirm(e.target.checked)}
+        data-testid="estop-confirm-switch"
+      />
+      <span>
+        Ask before an emergency stop on this screen
+        <span className="small ui-muted menu-switch-hint">
+          {on
+            ? 'On: an emergency stop or STOP asks first.'
+            : 'Off: an emergency stop or STOP is sent at the first tap.'}{' '}
+          Kept on this screen only{touchDefault ? ' (on by default on touch screens)' : ''}.
+        </span>
+      </span>
+    </label>
   );
 }

@@ -441,7 +441,7 @@ function reportScenario(s: Scenario, board3: boolean): void {
 // ---------------------------------------------------------------- main
 
 async function controllerText(base: string, p: string): Promise<string> {
-  // GET /config/values counts as a command (the flat API rewrites its file): the console's header.
+  // The console's header, as its own page sends it.
   const res = await fetch(`${base}/machines/${MACHINE}${p}`, { headers: { ...CONSOLE_HEADERS } });
   const text = await res.text();
   if (!res.ok) throw new Error(`GET ${p}: HTTP ${res.status}: ${text.slice(0, 200)}`);

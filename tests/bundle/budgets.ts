@@ -19,19 +19,23 @@ export const SIZE_BUDGETS_KIB: Array<{ screen: RegExp; kib: number }> = [
   { screen: /^machine page: /, kib: 144 },
   // A kiosk tablet's first screen (issue 16's ≤ 120 KiB target): its machine from the console
   // server's reading, before the family's code (src/app/kiosk/KioskPage.tsx).
-  // 116 → 117 (issue 33 item 15): its job control row, disabled "Connecting…", is on it (116.2).
-  { screen: /^kiosk page: first screen$/, kib: 117 },
+  // 116 → 118 (issue 33): its job control row, disabled "Connecting…", is on it from the first
+  // paint (item 15, 116.2), and the emergency stop's per-console setting shared with the top bar's
+  // switch and the families' own stops (item 10, src/fleet/estop-confirm.ts).
+  { screen: /^kiosk page: first screen$/, kib: 118 },
   // Then live, with the family's code and its controls.
   // 139 → 141 (issue 33): the same job-control row and shown state (g2core's kiosk: 140.2).
   { screen: /^kiosk page, live: /, kib: 141 },
   // The fleet page paints from the console server's readings before any family's code
   // (src/app/first-screen.ts): the shell and the fleet page.
-  { screen: /^fleet page: first screen$/, kib: 117 },
+  // 117 → 118 (issue 33, 10): the top bar menu's emergency-stop switch (measured 117.8).
+  { screen: /^fleet page: first screen$/, kib: 118 },
   // Then the families' code, at idle, for live tiles: 225 → 206 with the two changes above.
   // 206 → 185: Prunt's config-form engine loads when its editor opens, TouchCut's and Duet's tile
   // thumbnails and login forms when they show.
   // 185 → 186 (issue 33): the tiles' alarm-aware shown state and the "N other alarms" line (185.4).
-  { screen: /^fleet page, live tiles: /, kib: 186 },
+  // 186 → 187 (issue 33, 10 and 13): the same switch, the families' phrase tables (186.3).
+  { screen: /^fleet page, live tiles: /, kib: 187 },
 ];
 
 /** The screens over their ceiling, in words (empty: all within budget). A screen without a ceiling is one too. */

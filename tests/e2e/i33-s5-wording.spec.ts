@@ -63,8 +63,8 @@ test('no developer or protocol words on the pages concerned; "no limit" for unbo
   await expect(page.getByTestId('touchcut-axes')).toContainText('Long axis');
   await expectNoDeveloperWords(page, 'TouchCut monitor');
 
-  // (g2core's override rows, another slice's files, still say "mfoe = 0": not visited here.)
-  for (const id of ['demo-xtool']) {
+  // The xTool's socket frame and g2core's override rows in words.
+  for (const id of ['demo-xtool', 'demo-g2core']) {
     await page.goto(`/m/${id}`);
     await expect(page.getByTestId('machine-link')).toHaveText('Online');
     await expectNoDeveloperWords(page, id);

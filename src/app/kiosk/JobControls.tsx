@@ -1,46 +1,11 @@
-import { useId, useState, useSyncExternalStore, type ReactNode } from 'react';
+import { useId, useState, type ReactNode } from 'react';
 import type { AnyCommand } from '../../fleet/commands';
 import type { MachineSession } from '../../fleet/contract';
+import { ESTOP_QUESTION, ESTOP_SAID, useEstopConfirm } from '../../fleet/estop-confirm';
 import { CommandButton, useRole } from '../../fleet/react';
 import { roleAtLeast } from '../../fleet/types';
 import { Button } from '../../ui';
 import { JOB_CONTROL_ROLE, JOB_CONTROL_WORDS, type JobControlKind, type KioskFamily } from './per-family';
-
-/** A touch screen (also one beside a mouse: a tablet with a keyboard case). */
-const COARSE = '(pointer: coarse), (any-pointer: coarse)';
-/** This console's choice (localStorage): `on` or `off`; unset follows the screen (on for touch). */
-export const ESTOP_CONFIRM_KEY = 'shopdeck.estop-confirm';
-
-function subscribeCoarse(fn: () => void): () => void {
-  if (typeof window === 'undefined' || typeof window.matchMedia !== 'function') return () => undefined;
-  const q = window.matchMedia(COARSE);
-  q.addEventListener('change', fn);
-  return () => q.removeEventListener('change', fn);
-}
-
-function estopConfirmNow(): boolean {
-  if (typeof window === 'undefined') return false;
-  let set: string | null = null;
-  try {
-    set = window.localStorage.getItem(ESTOP_CONFIRM_KEY);
-  } catch {
-    // Storage refused (private mode): the default below.
-  }
-  if (set === 'on') return true;
-  if (set === 'off') return false;
-  return typeof window.matchMedia === 'function' && window.matchMedia(COARSE).matches;
-}
-
-/**
- * Whether an emergency stop asks first on this console: a setting per console (`ESTOP_CONFIRM_KEY`),
- * on by default on touch screens, where a brush of a glove is a tap.
- */
-export function useEstopConfirm(): boolean {
-  return useSyncExternalStore(subscribeCoarse, estopConfirmNow, () => false);
-}
-
-const ESTOP_QUESTION =
-  'Emergency stop: halt the machine now? Motion and heaters stop at once and the job ends; it cannot be resumed.';
 
 /** What the dismiss of each control's question keeps. */
 const KEEP: Record<Exclude<JobControlKind, 'stop'>, string> = {
@@ -108,7 +73,7 @@ export function JobControls({
                   which,
                   text:
                     which === 'estop'
-                      ? 'Emergency stop sent: the machine is halted and the job has ended. Check the machine before the next job.'
+                      ? ESTOP_SAID
                       : `Stop job sent (${r}): the job ends and cannot be resumed.`,
                 })
               : setSaid(null)

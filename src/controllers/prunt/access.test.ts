@@ -18,8 +18,8 @@ describe('pruntAccess', () => {
       expect(req('GET', p)).toMatchObject({ role: 'viewer', command: false });
     }
     expect(req('GET', '/websocket/everything', true).role).toBe('viewer');
-    // The flat API rewrites its config file on every read: viewers may read, the gateway audits it.
-    expect(req('GET', '/config/values')).toMatchObject({ role: 'viewer', command: true });
+    // Reading the config writes nothing on the controller (Get_Values): a read, not audited.
+    expect(req('GET', '/config/values')).toMatchObject({ role: 'viewer', command: false });
   });
   it('job controls and uploads are for operators, and audited', () => {
     for (const p of ['/pause/pause', '/pause/resume', '/cancel', '/run-file'])

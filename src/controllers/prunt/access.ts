@@ -14,14 +14,8 @@ export const pruntAccess: AccessPolicy = (req) => {
   if (req.websocket) return read('live status and logs');
   const m = req.method.toUpperCase();
   if (m === 'GET' || m === 'HEAD') {
-    // On the 2025 flat API every GET /config/values rewrites the config file on the controller
-    // (SOURCES.md): a viewer may read it, but the read is audited like a command.
-    if (path === '/config/values')
-      return {
-        role: 'viewer',
-        command: true,
-        label: 'read config values (rewrites the config file on 2025 boards)',
-      };
+    // GET /config/values only reads (prunt-config.adb `Get_Values`): Prunt writes its config file
+    // once at its first access after a start and on a save (POST), never on a read. Not audited.
     return read();
   }
   if (m === 'POST') {

@@ -72,8 +72,8 @@ export class PruntClient {
   }
 
   /**
-   * `GET /config/values`. Never poll this: on the flat API every GET rewrites the config file on
-   * the controller. Called when the editor opens and after a save.
+   * `GET /config/values`: a read (Prunt writes its config file only at its start and on a save).
+   * Not polled: called when the editor opens, on "Reload" and after a server restart.
    */
   configValues(signal?: AbortSignal) {
     return this.http.json({ path: '/config/values', timeoutMs: 20_000, signal }, configValuesSchema);

@@ -43,7 +43,7 @@ function orphanWords(labels: string[]): string {
 /**
  * The config editor's data: schema and values read on demand (when the editor opens, on
  * "Reload", after a server restart), a FormModel holding the user's drafts, and the save. The
- * values are never polled: on the 2025 flat API every GET rewrites the config file.
+ * values are never polled (nobody else edits them but a save, whose reply carries them).
  */
 export class PruntConfig {
   readonly store: StoreApi<ConfigState>;

@@ -10,8 +10,7 @@ import type { PruntApi } from './config-ir';
  *   across those: stale at once, but one request at a time).
  * - `configSchema`, `configValues`: read when the editor opens, on "Reload" and after a server
  *   restart — never polled, never invalidated by the query layer (no observer, no command
- *   declares them): on the 2025 flat API every `GET /config/values` rewrites the controller's
- *   config file and is audited. A save's reply carries the new values.
+ *   declares them). A plain read (not audited); a save's reply carries the new values.
  */
 export const PRUNT_KEYS = {
   files: ['files'],

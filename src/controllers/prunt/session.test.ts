@@ -288,7 +288,7 @@ describe('PruntSession against the flat API (2025)', () => {
     await until(() => ctx.snapshot.getState().link === 'online' && session.store.getState().api === 'flat');
     await session.openConfig();
     await advance(3000);
-    expect(sim.configWrites).toBe(1);
+    expect(sim.configReads).toBe(1);
     expect(session.store.getState().update?.result).toEqual({ Available: false, URL: '' });
     const snap = ctx.snapshot.getState();
     expect(snap.temperatures.map((t) => t.name)).toEqual([
@@ -301,7 +301,7 @@ describe('PruntSession against the flat API (2025)', () => {
     const model = session.config.getState().model;
     model?.set('Fans$FAN_2$PWM frequency', '200');
     await ctx.commands.run(session.cmd.saveConfig, undefined);
-    expect(sim.configWrites).toBe(1); // the POST reply carried the values: no second GET
+    expect(sim.configReads).toBe(1); // the POST reply carried the values: no second GET
     expect(model?.store.getState().serverErrors['Fans$FAN_2$PWM frequency']?.[0]).toMatch(
       /high-side switching mode/,
     );

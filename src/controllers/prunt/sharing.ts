@@ -29,8 +29,8 @@ export const WATCH_EVERY_MS = 10_000;
  * No HTTP read is shared. The console polls none: status, logs and command progress come by the
  * socket. Its reads are on demand (schemas and the update check at connect and after a server
  * restart, the uploads list, files) or follow a command: `GET /status/values` right after a
- * pause must show the pause, so it may not be answered with a read from just before it. And
- * `GET /config/values` is a command (it rewrites the config file on 2025 boards).
+ * pause must show the pause, so it may not be answered with a read from just before it; and
+ * `GET /config/values` right after a save must show the save.
  */
 export function pruntShareRead(): number | null {
   return null;

@@ -1,4 +1,5 @@
 import { useEffect, useMemo, useRef, useState, type ReactNode } from 'react';
+import { ESTOP_QUESTION, ESTOP_SAID, useEstopConfirm } from '../../../fleet/estop-confirm';
 import { CommandButton, useSnapshot, useStoreSelect } from '../../../fleet/react';
 import { Button, Dialog, Field, Notice } from '../../../ui';
 import { imageDataUrl } from '../../../ui/safe-url';
@@ -116,7 +117,7 @@ const MODE_WORDS: Record<number, string> = {
  * timeout or from the machine); we still let the user hide it locally. The answer is M292 as the
  * firmware expects (see messageBoxReply).
  */
-export function MessageBoxDialog({ session }: { session: DuetSession }) {
+export function MessageBoxDialog({ session, onEstop }: { session: DuetSession; onEstop?: () => void }) {
   const { box, dismissed } = useStoreSelect(session.store, (s) => ({
     box: s.model?.state.messageBox ?? null,
     dismissed: s.dismissedBoxes,
@@ -124,12 +125,26 @@ export function MessageBoxDialog({ session }: { session: DuetSession }) {
   if (!box || dismissed.includes(box.seq)) return null;
   // One dialog per box (`key`): it takes focus once when the box appears, not on each model frame.
   return (
-    <MessageBoxBody key={box.seq} box={box} session={session} onHide={() => session.dismissBox(box.seq)} />
+    <MessageBoxBody
+      key={box.seq}
+      box={box}
+      session={session}
+      onHide={() => session.dismissBox(box.seq)}
+      onEstop={onEstop}
+    />
   );
 }
 
-function MessageBoxBody(props: { box: MessageBox; session: DuetSession; onHide: () => void }) {
+function MessageBoxBody(props: {
+  box: MessageBox;
+  session: DuetSession;
+  onHide: () => void;
+  onEstop?: () => void;
+}) {
   const { box, session } = props;
+  // The same question as the job control row's emergency stop: this console's setting (on by
+  // default on touch screens), asked over the message box.
+  const estopConfirm = useEstopConfirm();
   const ctx = session.ctx;
   const link = useSnapshot(ctx, (s) => s.link);
   const [text, setText] = useState(() =>
@@ -172,6 +187,9 @@ function MessageBoxBody(props: { box: MessageBox; session: DuetSession; onHide: 
             args={undefined}
             variant="danger"
             testId="duet-messagebox-estop"
+            confirmText={estopConfirm ? ESTOP_QUESTION : undefined}
+            dismissLabel="Keep running"
+            onDone={() => props.onEstop?.()}
           >
             Emergency stop
           </CommandButton>
@@ -288,11 +306,18 @@ function JogControls({ session, axes }: { session: DuetSession; axes: string[] }
  * content. (The machine page itself shows link problems and the login form.)
  */
 export function DuetFrame({ session, children }: { session: DuetSession; children: ReactNode }) {
+  // An emergency stop from the message box: said on the page (the box itself goes with the reset).
+  const [estopSaid, setEstopSaid] = useState(false);
   return (
     <div data-testid="duet-page">
       <EstopBar session={session} />
+      {estopSaid && (
+        <p className="job-said" role="status" data-testid="duet-estop-said">
+          {ESTOP_SAID}
+        </p>
+      )}
       <PollingNotice session={session} />
-      <MessageBoxDialog session={session} />
+      <MessageBoxDialog session={session} onEstop={() => setEstopSaid(true)} />
       {children}
     </div>
   );

@@ -1,4 +1,5 @@
 import { useState } from 'react';
+import { useEstopConfirm } from '../../../fleet/estop-confirm';
 import { CommandButton, useStoreSelect } from '../../../fleet/react';
 import { Button, Panel } from '../../../ui';
 import type { AxisLetter, G2coreSession } from '../session';
@@ -8,6 +9,11 @@ const STEPS_MM = [0.1, 1, 10, 50];
 const STEPS_IN = [0.001, 0.01, 0.1, 1];
 const FEEDS_MM = [100, 500, 1000, 3000];
 const FEEDS_IN = [5, 20, 50, 100];
+
+const STOP_QUESTION =
+  'STOP: halt what moves now? The jog or homing stops, else the running job ends (a stopped job cannot be resumed).';
+const STOP_SAID =
+  'STOP sent (kill): the motion has stopped; a job that was running has ended and cannot be resumed.';
 
 /** Jog (relative moves at a chosen step and feed), homing, and a big stop. */
 export function JogTab({ session }: { session: G2coreSession }) {
@@ -20,6 +26,9 @@ export function JogTab({ session }: { session: G2coreSession }) {
   const feed = feeds[feedIdx] ?? feeds[0]!;
   const unit = inches ? 'in' : 'mm';
   const { commands: runner, snapshot } = session.ctx;
+  // The emergency stop's setting (on by default on touch screens): the big STOP asks first.
+  const stopConfirm = useEstopConfirm();
+  const [stopSaid, setStopSaid] = useState(false);
   return (
     <div
       className="ui-grid"
@@ -36,10 +45,19 @@ export function JogTab({ session }: { session: G2coreSession }) {
             args={undefined}
             variant="danger"
             testId="g2-bigstop"
+            label="STOP"
+            confirmText={stopConfirm ? STOP_QUESTION : undefined}
+            dismissLabel="Keep moving"
+            onDone={() => setStopSaid(true)}
           >
             <span className="g2-bigstop">STOP</span>
           </CommandButton>
         </div>
+        {stopSaid && (
+          <p className="job-said" role="status" data-testid="g2-stop-said">
+            {STOP_SAID}
+          </p>
+        )}
         <p className="ui-muted" style={{ textAlign: 'center' }}>
           Stops whatever moves: the jog or homing, else the running job (a stopped job cannot be resumed).
         </p>

@@ -4,6 +4,7 @@ import { useBlockedReason } from '../../../fleet/kernel';
 import { CommandButton, useStoreSelect } from '../../../fleet/react';
 import { Panel } from '../../../ui';
 import { LockableSlider } from '../../../ui/Lockable';
+import { OVERRIDE_PHRASES, overrideLine } from '../phrases';
 import type { G2coreSession } from '../session';
 
 const STEPS = [-0.1, 0.1] as const;
@@ -21,32 +22,27 @@ export function Overrides({ session }: { session: G2coreSession }) {
   if (mfo === null && sso === null) return null;
   return (
     <Panel title="Overrides">
-      {mfo !== null && (
-        <OverrideRow session={session} k="mfo" value={mfo} on={enabled.mfoe} what="Feed override" />
-      )}
-      {sso !== null && (
-        <OverrideRow session={session} k="sso" value={sso} on={enabled.ssoe} what="Spindle override" />
-      )}
+      {mfo !== null && <OverrideRow session={session} k="mfo" value={mfo} on={enabled.mfoe} />}
+      {sso !== null && <OverrideRow session={session} k="sso" value={sso} on={enabled.ssoe} />}
     </Panel>
   );
 }
 
-function OverrideRow(props: {
-  session: G2coreSession;
-  k: 'mfo' | 'sso';
-  value: number;
-  on: boolean | null;
-  what: string;
-}) {
-  const { session, k, value, on, what } = props;
+function OverrideRow(props: { session: G2coreSession; k: 'mfo' | 'sso'; value: number; on: boolean | null }) {
+  const { session, k, value, on } = props;
+  const phrase = OVERRIDE_PHRASES[k];
+  const what = phrase.what;
   const { commands: runner, snapshot } = session.ctx;
   const blocked = useBlockedReason(runner, snapshot, session.setOverride);
   const [error, setError] = useState<string | null>(null);
   return (
     <div style={{ marginBottom: 12 }} data-testid={`g2-override-${k}`}>
       {on === false && (
-        <div className="ui-muted">
-          Disabled in the settings ({k}e = 0): the factor is stored but not applied.
+        <div className="ui-muted" data-testid={`g2-override-${k}-off`}>
+          {overrideLine(phrase, value, on)}. Turn on “{phrase.setting}” in Settings to use it.{' '}
+          <span className="small" title="g2core's own setting">
+            (g2core: {phrase.enable})
+          </span>
         </div>
       )}
       <LockableSlider

@@ -48,12 +48,14 @@ describe('PruntSimulator (flat API) reproduces the fixtures', () => {
     expect(sim.values['Fans$FAN_2$PWM frequency']).toBe(25000);
   });
 
-  it('every GET /config/values rewrites the config file (quirk)', async () => {
+  it('GET /config/values reads (counted) and changes nothing', async () => {
     sim = new PruntSimulator({ id: 'p', name: 'p', api: 'flat' });
     await sim.ready;
+    const before = JSON.stringify(sim.values);
     await get(sim, '/config/values');
     await get(sim, '/config/values');
-    expect(sim.configWrites).toBe(2);
+    expect(sim.configReads).toBe(2);
+    expect(JSON.stringify(sim.values)).toBe(before);
   });
 
   it('sends ticks every Nth 50 ms tick according to the divisor', async () => {

@@ -82,8 +82,8 @@ export class PruntSimulator implements Simulator {
   readonly ready: Promise<void>;
   private loaded = false;
   values: FlatValues;
-  /** Times the flat API's GET /config/values rewrote the config file (a real quirk). */
-  configWrites = 0;
+  /** Times the flat API answered GET /config/values (a read: it writes nothing). */
+  configReads = 0;
   startup: Startup = 'Done';
   paused = false;
   job: Job | null = null;
@@ -223,8 +223,8 @@ export class PruntSimulator implements Simulator {
   private getValues(): unknown {
     const errors = validateConfig(this.values);
     if (this.api === 'flat') {
-      // Quirk (SOURCES.md): every GET /config/values rewrites the config file on the controller.
-      this.configWrites++;
+      // A read: Prunt's Get_Values writes nothing (its file is written at start and by a save).
+      this.configReads++;
       return { Values: this.values, Errors: errors };
     }
     return { Values: toModuleValues(this.values), Errors: this.toPathErrors(errors) };

@@ -59,6 +59,33 @@ export function axisName(name: string | undefined, index?: string | number): str
   return `${words.charAt(0).toUpperCase()}${words.slice(1)} axis`;
 }
 
+/** TouchCut's field names (its "subject to change" JSON) as people read them. */
+const KEY_WORDS: Record<string, string> = {
+  activeProgram: 'Active program',
+  fileId: 'File number',
+  programs: 'Programs',
+  units: 'Units',
+  name: 'Name',
+  total: 'Total',
+};
+
+/**
+ * A field name of TouchCut's generic data for people: the phrase table, else a camelCase or
+ * snake_case name split into words ("cutCount" → "Cut count"); the name TouchCut sends stays
+ * the cell's title (a technician's hover).
+ */
+export function keyLabel(key: string): string {
+  const known = KEY_WORDS[key];
+  if (known) return known;
+  if (axisName(key) !== key) return axisName(key);
+  const words = key
+    .replace(/([a-z0-9])([A-Z])/g, '$1 $2')
+    .replace(/[_-]+/g, ' ')
+    .trim()
+    .toLowerCase();
+  return words ? `${words.charAt(0).toUpperCase()}${words.slice(1)}` : key;
+}
+
 export function num(v: number | undefined | null, digits = 2): string {
   return formatDecimal(v, digits);
 }
@@ -152,8 +179,8 @@ export function DataTree(props: { value: unknown; depth?: number; label?: string
             <thead>
               <tr>
                 {cols.map((c) => (
-                  <th key={c} scope="col">
-                    {c}
+                  <th key={c} scope="col" title={c}>
+                    {keyLabel(c)}
                   </th>
                 ))}
               </tr>
@@ -163,7 +190,7 @@ export function DataTree(props: { value: unknown; depth?: number; label?: string
                 <tr key={i}>
                   {cols.map((c) => (
                     <td key={c}>
-                      <Nested value={row[c]} depth={depth + 1} label={c} />
+                      <Nested value={row[c]} depth={depth + 1} label={keyLabel(c)} />
                     </td>
                   ))}
                 </tr>
@@ -190,9 +217,9 @@ export function DataTree(props: { value: unknown; depth?: number; label?: string
       <dl className="ui-kv">
         {entries.map(([k, x]) => (
           <div key={k} style={{ display: 'contents' }}>
-            <dt>{k}</dt>
+            <dt title={k}>{keyLabel(k)}</dt>
             <dd>
-              <Nested value={x} depth={depth + 1} label={k} />
+              <Nested value={x} depth={depth + 1} label={keyLabel(k)} />
             </dd>
           </div>
         ))}

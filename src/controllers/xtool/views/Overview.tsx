@@ -14,6 +14,7 @@ import {
 import { GRID } from './layout';
 import type { XtoolSession } from '../session';
 import type { XState } from '../state';
+import { frameTerm, frameWords } from '../phrases';
 
 const STATE_TONE: Record<XState, Tone> = {
   unknown: 'muted',
@@ -93,11 +94,17 @@ export function Overview({ session }: TabProps<XtoolSession>) {
           <p className="ui-muted" style={{ margin: 0 }}>
             Jobs start with the button on the machine. State from{' '}
             {d.source === 'socket'
-              ? `the live socket (${d.lastFrame?.raw ?? ''})`
+              ? `the live socket${d.lastFrame ? `: ${frameWords(d.lastFrame.raw)}` : ''}`
               : d.source === 'command'
                 ? "the laser's answer to the last command"
                 : 'the last poll'}
             {d.socketOpen ? '' : ' · live socket not connected, polling only'}.
+            {d.source === 'socket' && d.lastFrame && (
+              <span className="small" data-testid="xtool-frame-term">
+                {' '}
+                (xTool: {frameTerm(d.lastFrame.raw)})
+              </span>
+            )}
           </p>
         </div>
       </Panel>
