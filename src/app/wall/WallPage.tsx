@@ -53,9 +53,10 @@ export function WallPage() {
 
 function WallMessage({ children }: { children: React.ReactNode }) {
   return (
-    <div className="wall wall-message" data-testid="wall">
+    <main className="wall wall-message" data-testid="wall">
+      <h1 className="sr-only">Wall screen</h1>
       <p>{children}</p>
-    </div>
+    </main>
   );
 }
 
@@ -104,7 +105,8 @@ function Wall({ machines }: { machines: MachineInfo[] }) {
         unreadable={unreadable}
         spot={spotInfo ? inAlarm.indexOf(spotInfo.id) : -1}
       />
-      <div className="wall-body">
+      <main className="wall-body">
+        <h1 className="sr-only">Wall screen</h1>
         {spotInfo && (
           <section
             className="wall-spotlight"
@@ -132,7 +134,7 @@ function Wall({ machines }: { machines: MachineInfo[] }) {
             />
           ))}
         </div>
-      </div>
+      </main>
     </div>
   );
 }
