@@ -80,6 +80,7 @@ export function App() {
         </Titled>
       ) : (
         <Titled title="No page here">
+          <h1 className="sr-only">No page here</h1>
           <EmptyState>There is no page here.</EmptyState>
         </Titled>
       );
@@ -88,6 +89,7 @@ export function App() {
     default:
       body = (
         <Titled title="No page here">
+          <h1 className="sr-only">No page here</h1>
           <EmptyState>
             There is no page here. <Link to="/">Back to the fleet</Link>
           </EmptyState>
@@ -126,11 +128,11 @@ export function App() {
           </ErrorBoundary>
         )}
         {mode === 'open' && (
-          <div className="open-banner" role="note" data-testid="open-mode-banner">
+          <aside className="open-banner" aria-label="Open mode" data-testid="open-mode-banner">
             {openOnNetwork
               ? 'Open mode on the network (SHOPDECK_OPEN=1): anyone who can reach this computer can control these machines. Add users to require a login (see the README).'
               : 'Open mode: no login is needed, and the console only answers on this computer. Add users before serving it to tablets (see the README).'}
-          </div>
+          </aside>
         )}
         {mode === 'secured' && !user && route.name !== 'login' ? (
           <main className="main" id="main" tabIndex={-1}>

@@ -79,7 +79,11 @@ function FleetBody({ machines }: { machines: MachineInfo[] }) {
         <div data-testid="fleet-tiles" className={groups[0]?.label === null ? undefined : 'fleet-groups'}>
           {groups.map((g) =>
             g.label === null ? (
-              <Tiles key={g.key} ids={g.ids} byId={byId} />
+              <section key={g.key} aria-label="Machines">
+                {/* The tiles' names are h3: one level under the page's h1, as in a group. */}
+                <h2 className="sr-only">Machines</h2>
+                <Tiles ids={g.ids} byId={byId} />
+              </section>
             ) : (
               <TileGroup key={g.key} group={g} byId={byId} />
             ),

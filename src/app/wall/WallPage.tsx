@@ -63,9 +63,10 @@ export function WallPage() {
 
 function WallMessage({ children }: { children: React.ReactNode }) {
   return (
-    <div className="wall wall-message" data-testid="wall">
+    <main className="wall wall-message" data-testid="wall">
+      <h1 className="sr-only">Wall screen</h1>
       <p>{children}</p>
-    </div>
+    </main>
   );
 }
 
@@ -124,7 +125,8 @@ function Wall({ machines }: { machines: MachineInfo[] }) {
         spot={spotInfo ? inAlarm.indexOf(spotInfo.id) : -1}
         view={present ? <WallView grouping={grouping} onChange={setGrouping} /> : null}
       />
-      <div className="wall-body">
+      <main className="wall-body">
+        <h1 className="sr-only">Wall screen</h1>
         {spotInfo && (
           <section
             className="wall-spotlight"
@@ -140,7 +142,7 @@ function Wall({ machines }: { machines: MachineInfo[] }) {
         ) : (
           <FleetGrid machines={machines} aspect={aspect} card={card} />
         )}
-      </div>
+      </main>
     </div>
   );
 }

@@ -45,7 +45,7 @@ export function Overview({ session }: TabProps<DuetSession>) {
       <div className="ui-grid" data-testid="duet-overview">
         <JobPanel session={session} />
         {/* Two grid columns: the heater table and its chart need the width on a tablet. */}
-        <div style={{ gridColumn: 'span 2', minWidth: 0, display: 'grid' }}>
+        <div className="ui-span-2" style={{ minWidth: 0, display: 'grid' }}>
           <HeatersPanel session={session} />
         </div>
         <AxesPanel session={session} />

@@ -76,7 +76,7 @@ export function Plugins({ session }: TabProps<DuetSession>) {
             },
             {
               key: 'actions',
-              label: '',
+              label: <span className="sr-only">Actions</span>,
               render: (p) => (
                 <span className="ui-row" style={{ gap: 6 }}>
                   {p.sbcExecutable && p.pid <= 0 && (

@@ -88,7 +88,7 @@ export function JobsTab({ session }: { session: G2coreSession }) {
     },
     {
       key: 'actions',
-      label: '',
+      label: <span className="sr-only">Actions</span>,
       render: (j: Job) => {
         if (j.state.state !== 'queued') return null;
         const i = queued.indexOf(j);

@@ -78,7 +78,7 @@ export function FilesTab({ session }: TabProps<PruntSession>) {
             { key: 'name', label: 'File', render: (f) => <span className="mono">{f}</span> },
             {
               key: 'actions',
-              label: '',
+              label: <span className="sr-only">Actions</span>,
               align: 'right',
               render: (f) => (
                 <span className="ui-row" style={{ justifyContent: 'flex-end' }}>

@@ -285,6 +285,7 @@ function StatsBody({ session }: TabProps<TouchcutSession>) {
         testId="stats-consumables"
       >
         <DataTable
+          label="Consumables per tool"
           testId="stats-consumable-totals"
           rowKey={(r) => r.key}
           rows={derived.cons}
@@ -305,6 +306,7 @@ function StatsBody({ session }: TabProps<TouchcutSession>) {
             <CsvButton name={`touchcut-consumables-${tag}`} columns={consCsv} rows={data.consumables} />
           </div>
           <DataTable
+            label="Consumable records"
             rowKey={(_r, i) => String(i)}
             rows={data.consumables}
             columns={[
@@ -339,6 +341,7 @@ function StatsBody({ session }: TabProps<TouchcutSession>) {
       >
         <UserBars users={derived.users} />
         <DataTable
+          label="Sessions per user"
           rowKey={(r) => r.user}
           rows={derived.users}
           empty="No sessions in this range."
@@ -377,6 +380,7 @@ function StatsBody({ session }: TabProps<TouchcutSession>) {
           actions={<CsvButton name={`touchcut-programs-${tag}`} columns={progCsv} rows={data.programs} />}
         >
           <DataTable
+            label="Programs"
             rowKey={(r) => r.name}
             rows={derived.programs}
             empty="No programs in this range."
@@ -392,6 +396,7 @@ function StatsBody({ session }: TabProps<TouchcutSession>) {
           actions={<CsvButton name={`touchcut-errors-${tag}`} columns={errCsv} rows={data.errors} />}
         >
           <DataTable
+            label="Errors"
             rowKey={(_r, i) => String(i)}
             rows={data.errors}
             empty="No errors in this range."
@@ -420,6 +425,7 @@ function StatsBody({ session }: TabProps<TouchcutSession>) {
         }
       >
         <DataTable
+          label="Tool use"
           rowKey={(r) => `${r.tool ?? ''}-${r.name}`}
           rows={derived.tools}
           empty="No tool use in this range."
@@ -441,6 +447,7 @@ function StatsBody({ session }: TabProps<TouchcutSession>) {
           }
         >
           <DataTable
+            label="Machine totals"
             rowKey={(r) => r.key}
             rows={totalsRows(data.machine)}
             columns={totalsColumns(false)}
@@ -458,6 +465,7 @@ function StatsBody({ session }: TabProps<TouchcutSession>) {
           }
         >
           <DataTable
+            label="Resettable totals"
             rowKey={(r) => r.key}
             rows={totalsRows(data.machineResettable)}
             columns={totalsColumns(true)}

@@ -163,7 +163,7 @@ export function Files({ session }: TabProps<XtoolSession>) {
             { key: 'path', label: 'File', render: (r) => <span className="mono">{r.path}</span> },
             {
               key: 'actions',
-              label: '',
+              label: <span className="sr-only">Actions</span>,
               render: (r) => (
                 <div className="ui-row">
                   {r.dir ? (
