@@ -248,7 +248,9 @@ export class MachineWatch {
       const a = await this.host.read(jp.path);
       if (a.gateway || this.stopped) return {};
       const news = jp.read(a.status, a.body);
-      return news ? { job: news.job ?? null, ...(news.progress !== undefined ? { progress: news.progress } : {}) } : {};
+      return news
+        ? { job: news.job ?? null, ...(news.progress !== undefined ? { progress: news.progress } : {}) }
+        : {};
     } catch {
       return {};
     }

@@ -7,14 +7,7 @@ import { linkWords } from '../fleet/contract';
 import { useDerived, useSnapshot } from '../fleet/react';
 import { useJobWords } from '../fleet/job-facts';
 import { mostSevereAlarm, type MachineInfo } from '../fleet/types';
-import {
-  Badge,
-  Button,
-  EmptyState,
-  Loading,
-  Notice,
-  ProgressBar,
-} from '../ui';
+import { Badge, Button, EmptyState, Loading, Notice, ProgressBar } from '../ui';
 import { MachineAge } from './Age';
 import { ErrorBoundary } from './ErrorBoundary';
 import type { FleetGroup } from './fleet-views/arrange';

@@ -1,14 +1,7 @@
 import { useSnapshot, useStoreSelect } from '../../../fleet/react';
 import type { TabProps } from '../../../fleet/contract';
 import { JobFacts } from '../../../fleet/JobFacts';
-import {
-  Badge,
-  KeyValues,
-  Notice,
-  Panel,
-  formatNumber,
-  type Tone,
-} from '../../../ui';
+import { Badge, KeyValues, Notice, Panel, formatNumber, type Tone } from '../../../ui';
 import { GRID } from './layout';
 import type { XtoolSession } from '../session';
 import type { XState } from '../state';
