@@ -58,6 +58,14 @@ export function jobFactsOf(
   const startSeen = rec ? rec.startSeen : startedAt !== null;
   let remaining: JobFacts['remaining'] = null;
   if (progress === 1) remaining = { seconds: 0, how: 'machine' };
+  // Without a server record, the machine's own figure comes first (it is this page's only source).
+  else if (
+    !rec &&
+    live?.remaining !== null &&
+    live?.remaining !== undefined &&
+    Number.isFinite(live.remaining)
+  )
+    remaining = { seconds: Math.max(0, live.remaining), how: 'machine' };
   else if (startedAt !== null && startSeen && progress !== null && progress >= ESTIMATE_FROM) {
     const elapsed = Math.max(0, now - startedAt) / 1000;
     remaining = { seconds: Math.round((elapsed * (1 - progress)) / progress), how: 'estimate' };
