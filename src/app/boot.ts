@@ -15,7 +15,7 @@ import { backoffDelay } from '../fleet/link';
 import { MACHINE_KINDS, type MachineInfo, type MachineKind, type ServerJobRecord } from '../fleet/types';
 import { CONSOLE_HEADERS } from '../fleet/origin';
 import { startReadSocket } from '../fleet/read-socket';
-import { setJobRecords } from '../fleet/job-facts';
+import { setJobRecords } from '../fleet/job-records';
 import { fetchSession, trackActivity } from './auth/api';
 import { afterFirstScreen, firstScreenShown, onFirstScreen, readWatch } from './first-screen';
 import { untilReachable } from './pwa/reach';

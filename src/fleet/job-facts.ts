@@ -1,7 +1,7 @@
-import { useSyncExternalStore } from 'react';
 import { formatDuration, formatPercent } from '../ui/format';
 import { useNow } from './react';
-import type { JobSummary, ServerJobRecord } from './types';
+import { useJobRecord, type ReceivedJobRecord } from './job-records';
+import type { JobSummary } from './types';
 
 /**
  * A machine's job facts, one record for every view (issue 33): the console server's job record
@@ -12,11 +12,7 @@ import type { JobSummary, ServerJobRecord } from './types';
  * it is the server's), the same percentage (one rounding: down) and the same words for time left.
  */
 
-/** A server record as this page received it: its start is `receivedAt - elapsedMs` (page clock). */
-export interface ReceivedJobRecord {
-  record: ServerJobRecord;
-  receivedAt: number;
-}
+export type { ReceivedJobRecord };
 
 export interface JobFacts {
   name: string | null;
@@ -122,34 +118,6 @@ export function formatJob(f: JobFacts, now: number): JobWords {
           ? `about ${formatDuration(f.remaining.seconds)} left (estimate)`
           : `${formatDuration(f.remaining.seconds)} left`,
   };
-}
-
-// ------------------------------------------------------------------ the page's copy of the records
-
-const records = new Map<string, ReceivedJobRecord | null>();
-const listeners = new Set<() => void>();
-
-/**
- * The server's job records as the page received them (`GET /api/machines`, at boot and on each
- * refresh): a machine absent from `next` keeps what it had; null: the server says no job.
- */
-export function setJobRecords(next: ReadonlyMap<string, ServerJobRecord | null>, receivedAt: number): void {
-  for (const [id, r] of next) records.set(id, r ? { record: r, receivedAt } : null);
-  for (const fn of listeners) fn();
-}
-
-export function jobRecordOf(id: string): ReceivedJobRecord | null {
-  return records.get(id) ?? null;
-}
-
-function subscribe(fn: () => void): () => void {
-  listeners.add(fn);
-  return () => listeners.delete(fn);
-}
-
-/** The server's job record of a machine as this page has it (re-renders when a refresh brings one). */
-export function useJobRecord(id: string): ReceivedJobRecord | null {
-  return useSyncExternalStore(subscribe, () => records.get(id) ?? null);
 }
 
 /**
