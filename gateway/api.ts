@@ -6,7 +6,7 @@ import { auditQueryFrom, streamCsv } from './audit';
 import { LoginHistory, SESSION_COOKIE, type LimitKey } from './auth';
 import { discoverXtool } from './discovery';
 import { clientAddress, parseCookies, readJson, sendJson } from './http-util';
-import type { WatchSummary } from '../src/fleet/contract';
+import type { WatchJobRecord, WatchSummary } from '../src/fleet/contract';
 import { machineInfo } from './machines';
 import { LOGOUT_CLEAR_SITE_DATA } from './page-headers';
 import { createSimApi, SIM_API_PATH } from './sim-api';
@@ -66,6 +66,8 @@ export interface Watched {
   summary: WatchSummary;
   /** When the watch last heard the machine (ms, the gateway's clock); null: not yet. */
   lastSeen: number | null;
+  /** The job the watch keeps a record of (watch.ts `nextJobRecord`); null or absent: none. */
+  job?: WatchJobRecord | null;
 }
 
 /** Longest text of a controller's the machines list carries (a job name, an alarm). */
@@ -105,6 +107,15 @@ export function watchForPage(
     // The worst of the alarms the watch read (a warning when it did not say).
     alarmSeverity: s.alarm === null ? null : (mostSevereAlarm(s.alarms ?? [])?.severity ?? 'warning'),
     ageMs: w.lastSeen === null ? null : Math.max(0, now - w.lastSeen),
+    // The job record, every view's job facts: its start as an age (the tablet's clock may differ).
+    record: w.job
+      ? {
+          name: text(w.job.name),
+          elapsedMs: Math.max(0, now - w.job.startedAt),
+          startSeen: w.job.startSeen,
+          progress: w.job.progress,
+        }
+      : null,
   };
 }
 

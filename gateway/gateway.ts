@@ -117,7 +117,7 @@ export function createGateway(opts: GatewayOptions): Gateway {
     temperatures,
     watched: (id) => {
       const w = watchById.get(id);
-      return w ? { summary: w.current, lastSeen: w.lastSeen } : null;
+      return w ? { summary: w.current, lastSeen: w.lastSeen, job: w.job } : null;
     },
   });
   const { upgradeMachine, holdStream } = createWsProxy(ctx);

@@ -1,4 +1,4 @@
-import type { WatchAlarm, WatchDecl, WatchNews, WatchSummary } from '../src/fleet/contract';
+import type { WatchAlarm, WatchDecl, WatchJobRecord, WatchNews, WatchSummary } from '../src/fleet/contract';
 
 /**
  * The gateway's own slow watch of every machine (the family's `sharing.watch`), with or without
@@ -76,6 +76,41 @@ function withRaised(current: WatchAlarm[] | undefined, raised: WatchAlarm[]): Wa
   return [...byKey.values()];
 }
 
+const JOB_STATES: ReadonlySet<WatchSummary['state']> = new Set(['running', 'paused']);
+/** States in which no job runs: the record ends, and the next job's start is seen. */
+const NO_JOB_STATES: ReadonlySet<WatchSummary['state']> = new Set(['idle', 'alarm']);
+
+/**
+ * The job record after a summary (issue 33): a job starts when the machine is first seen running
+ * or paused, or when it names another job; it keeps its start and the name once learnt (a later
+ * reading that names none keeps it); it ends when the machine is idle or in alarm. While the
+ * machine is offline or its state unknown the record stays as it was (nobody knows it ended).
+ */
+export function nextJobRecord(
+  rec: WatchJobRecord | null,
+  prev: WatchSummary,
+  next: WatchSummary,
+  now: number,
+): WatchJobRecord | null {
+  if (NO_JOB_STATES.has(next.state)) return null;
+  if (!JOB_STATES.has(next.state)) return rec;
+  const progress =
+    typeof next.progress === 'number' && Number.isFinite(next.progress)
+      ? Math.min(1, Math.max(0, next.progress))
+      : null;
+  const named = next.job === null || next.job === '' ? null : next.job;
+  if (!rec || (named !== null && rec.name !== null && named !== rec.name))
+    return {
+      name: named,
+      startedAt: now,
+      // Seen to start: the machine was known to be without a job, or named another one.
+      startSeen: rec !== null || NO_JOB_STATES.has(prev.state),
+      progress,
+    };
+  if (rec.name === (named ?? rec.name) && rec.progress === progress) return rec;
+  return { ...rec, name: named ?? rec.name, progress };
+}
+
 export class MachineWatch {
   private summary: WatchSummary = EMPTY;
   private timer: ReturnType<typeof setTimeout> | null = null;
@@ -88,6 +123,7 @@ export class MachineWatch {
   private streamPending = false;
   /** When the last good summary came (ms). */
   lastSeen: number | null = null;
+  private jobRecord: WatchJobRecord | null = null;
 
   constructor(
     readonly machine: string,
@@ -97,6 +133,11 @@ export class MachineWatch {
 
   get current(): WatchSummary {
     return this.summary;
+  }
+
+  /** The job the machine runs, as the server knows it (null: none): every view's job facts. */
+  get job(): WatchJobRecord | null {
+    return this.jobRecord;
   }
 
   start(): void {
@@ -133,9 +174,11 @@ export class MachineWatch {
       next.raised = raise.map((a) => a.key);
     }
     this.summary = next;
+    const t = (this.host.now ?? Date.now)();
+    this.jobRecord = nextJobRecord(this.jobRecord, prev, next, t);
     if (next.state !== 'offline') {
       this.failures = 0;
-      this.lastSeen = (this.host.now ?? Date.now)();
+      this.lastSeen = t;
     }
     // Observed first: the alarm centre makes its record durable (alarms.ts) before the change is
     // announced in the log and the audit log.
@@ -184,13 +227,32 @@ export class MachineWatch {
       const s = read.read(a.status, a.body);
       // Answered, but nothing the family reads: "not read by the server", said, never nothing.
       if (s instanceof Error) this.learn({ unread: s.message.slice(0, 300) });
-      else this.learn({ ...s, unread: null });
+      else this.learn({ ...s, ...(await this.jobNews(s)), unread: null });
     } catch {
       // The read could not be made: the gateway's reachability log says why.
       if (!this.stopped) this.unreachable();
     } finally {
       this.inFlight = false;
       this.ensureStream();
+    }
+  }
+
+  /**
+   * The family's job read (`jobPoll`) when the poll found a job and named none: its name and
+   * progress. Nothing when it fails (the summary stands; the record keeps what it had).
+   */
+  private async jobNews(s: WatchSummary): Promise<WatchNews> {
+    const jp = this.decl.jobPoll;
+    if (!jp || s.job !== null || !JOB_STATES.has(s.state) || this.stopped) return {};
+    try {
+      const a = await this.host.read(jp.path);
+      if (a.gateway || this.stopped) return {};
+      const news = jp.read(a.status, a.body);
+      return news
+        ? { job: news.job ?? null, ...(news.progress !== undefined ? { progress: news.progress } : {}) }
+        : {};
+    } catch {
+      return {};
     }
   }
 

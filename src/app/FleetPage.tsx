@@ -5,17 +5,9 @@ import { getRuntime, fleetStore, type MachineRuntime } from '../fleet/fleet';
 import { lazyView, preloadViews } from '../fleet/lazy';
 import { linkWords } from '../fleet/contract';
 import { useDerived, useSnapshot } from '../fleet/react';
+import { useJobWords } from '../fleet/job-facts';
 import { mostSevereAlarm, type MachineInfo } from '../fleet/types';
-import {
-  Badge,
-  Button,
-  EmptyState,
-  Loading,
-  Notice,
-  ProgressBar,
-  formatDuration,
-  formatPercent,
-} from '../ui';
+import { Badge, Button, EmptyState, Loading, Notice, ProgressBar } from '../ui';
 import { MachineAge } from './Age';
 import { ErrorBoundary } from './ErrorBoundary';
 import type { FleetGroup } from './fleet-views/arrange';
@@ -193,6 +185,8 @@ function TileBody({ info, rt }: { info: MachineInfo; rt: MachineRuntime }) {
   const mod = useController(info.kind);
   const alarm = mostSevereAlarm(s.alarms.filter((a) => !a.acknowledged));
   const shown = shownState(s.activity, s.alarms);
+  // The job in the words of every view: the server's record first (fleet/job-facts.ts).
+  const job = useJobWords(info.id, s.job);
   const Extra = mod?.TileExtra;
   const nameId = useId();
   const preloadFirstTab = () =>
@@ -242,21 +236,16 @@ function TileBody({ info, rt }: { info: MachineInfo; rt: MachineRuntime }) {
       <div className="tile-label" data-testid="tile-label">
         {s.activityLabel}
       </div>
-      {s.job ? (
-        <div className="tile-job">
-          <div className="tile-job-name" title={s.job.name ?? undefined}>
-            {s.job.name ?? 'Job'}
+      {s.job && job ? (
+        <div className="tile-job" data-testid="tile-job">
+          <div className="tile-job-name" title={job.name} data-testid="tile-job-name">
+            {job.name}
           </div>
-          <ProgressBar value={s.job.progress} label={`${info.name} job progress`} />
+          <ProgressBar value={job.fraction} label={`${info.name} job progress`} />
           <div className="ui-row small ui-muted tile-job-times">
-            <span>{formatPercent(s.job.progress)}</span>
-            <span>
-              {s.job.remaining !== null
-                ? `${formatDuration(s.job.remaining)} left`
-                : s.job.elapsed !== null
-                  ? `${formatDuration(s.job.elapsed)} elapsed`
-                  : ''}
-            </span>
+            <span data-testid="tile-job-percent">{job.percent}</span>
+            <span data-testid="tile-job-running">{job.runningFor}</span>
+            <span data-testid="tile-job-remaining">{job.remaining}</span>
           </div>
         </div>
       ) : (

@@ -12,9 +12,10 @@ import {
   type MachineRuntime,
 } from '../fleet/fleet';
 import { backoffDelay } from '../fleet/link';
-import { MACHINE_KINDS, type MachineInfo, type MachineKind } from '../fleet/types';
+import { MACHINE_KINDS, type MachineInfo, type MachineKind, type ServerJobRecord } from '../fleet/types';
 import { CONSOLE_HEADERS } from '../fleet/origin';
 import { startReadSocket } from '../fleet/read-socket';
+import { setJobRecords } from '../fleet/job-records';
 import { fetchSession, trackActivity } from './auth/api';
 import { afterFirstScreen, firstScreenShown, onFirstScreen, readWatch } from './first-screen';
 import { untilReachable } from './pwa/reach';
@@ -81,6 +82,9 @@ export async function boot(): Promise<void> {
     });
     return;
   }
+  // The server's job records: every view's job facts (fleet/job-facts.ts), refreshed while open.
+  setJobRecords(new Map(machines.map((m) => [m.id, m.watch?.record ?? null])), Date.now());
+  refreshJobRecords();
   const created: MachineRuntime[] = [];
   for (const m of machines) {
     if (getRuntime(m.id)) continue;
@@ -159,6 +163,35 @@ export async function boot(): Promise<void> {
     for (const rt of allRuntimes()) rt.session?.stop();
     reads?.close();
   });
+}
+
+/** How often an open page asks the server again for its job records (its watch reads each few s). */
+const JOB_RECORDS_EVERY_MS = 5000;
+
+/**
+ * Asks `GET /api/machines` again every few seconds for the server's job records (name, start,
+ * progress): the one source of every view's job facts. A hidden page does not ask; a failed or
+ * malformed answer changes nothing (the records stay as last received, the next try comes).
+ */
+function refreshJobRecords(): void {
+  const timer = setInterval(() => {
+    if (document.hidden) return;
+    void fetch('/api/machines', { credentials: 'same-origin', headers: CONSOLE_HEADERS })
+      .then(async (r) => {
+        if (!r.ok) return;
+        const parsed = MachinesAnswer.safeParse(await r.json());
+        if (!parsed.success) return;
+        const next = new Map<string, ServerJobRecord | null>();
+        for (const m of parsed.data.machines) {
+          const w = readWatch(m.watch);
+          // No reading (nothing watched, a bad one): the record stays as it was.
+          if (w) next.set(m.id, w.record ?? null);
+        }
+        setJobRecords(next, Date.now());
+      })
+      .catch(() => undefined);
+  }, JOB_RECORDS_EVERY_MS);
+  window.addEventListener('pagehide', () => clearInterval(timer));
 }
 
 /** The machine whose page is open (`/m/<id>…`), if one is (the router's reading of the address). */

@@ -23,6 +23,16 @@ export const watchSchema: z.ZodMiniType<ServerWatch> = z.object({
   alarmSeverity: z.optional(z.nullable(z.enum(SEVERITIES))),
   ageMs: z.nullable(z.number()),
   unread: z.optional(z.nullable(z.string())),
+  record: z.optional(
+    z.nullable(
+      z.object({
+        name: z.nullable(z.string()),
+        elapsedMs: z.number().check(z.nonnegative()),
+        startSeen: z.boolean(),
+        progress: z.nullable(z.number().check(z.gte(0), z.lte(1))),
+      }),
+    ),
+  ),
 });
 
 /** The machine's `watch` if it reads as one (anything else: none, the card waits for its session). */

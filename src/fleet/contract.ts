@@ -242,6 +242,25 @@ export interface WatchSummary {
   unread?: string | null;
 }
 
+/**
+ * The console server's record of a machine's job (issue 33): one per machine, kept by its watch
+ * from the summaries it learns, the one source of every view's job facts (name, start, elapsed,
+ * progress). Null while no job runs.
+ */
+export interface WatchJobRecord {
+  /** The job's name as the server knows it (the summary's, kept once learnt); null: none known. */
+  name: string | null;
+  /** When the server first saw the job running or paused (ms, the server's clock). */
+  startedAt: number;
+  /**
+   * Whether the server saw the job start (the machine was idle before): false when its first
+   * reading already found it under way (the server started mid-job), so the job is older than that.
+   */
+  startSeen: boolean;
+  /** 0..1, null when unknown. */
+  progress: number | null;
+}
+
 /** What a frame of a watched stream says: part of a summary, and alarms it raised (a frame cannot clear). */
 export type WatchNews = Partial<WatchSummary> & { raise?: WatchAlarm[] };
 
@@ -290,6 +309,12 @@ export interface WatchDecl {
    * the merged model of a model stream. Null: nothing read for certain. Never throws.
    */
   temperatures?: TemperatureDecl;
+  /**
+   * A second read made after a poll that found a job running or paused, when the poll's answer
+   * names no job (g2core: the status report does not, `GET /job` does): its news (job name,
+   * progress) join the summary; an error or null adds nothing.
+   */
+  jobPoll?: { path: string; read(status: number, body: string): WatchNews | null };
 }
 
 /** One sensor's reading as a family reads it (untrusted: the gateway checks and bounds it). */

@@ -42,6 +42,19 @@ export interface ServerWatch {
   ageMs: number | null;
   /** Why the server cannot read it (state `unread`). */
   unread?: string | null | undefined;
+  /** The server's job record (null or absent: no job): the one source of every view's job facts. */
+  record?: ServerJobRecord | null | undefined;
+}
+
+/** The console server's record of a machine's job, as `GET /api/machines` sends it. */
+export interface ServerJobRecord {
+  name: string | null;
+  /** How long the job had run (since the server first saw it) when the list was sent (ms). */
+  elapsedMs: number;
+  /** The server saw it start (false: it was already under way at the server's first reading). */
+  startSeen: boolean;
+  /** 0..1, null when unknown */
+  progress: number | null;
 }
 
 export const ROLES = ['viewer', 'operator', 'supervisor'] as const;

@@ -5,7 +5,8 @@ import { linkWords } from '../../fleet/contract';
 import { getRuntime, type MachineRuntime } from '../../fleet/fleet';
 import { useSnapshot } from '../../fleet/react';
 import { mostSevereAlarm, type MachineInfo } from '../../fleet/types';
-import { Badge, ProgressBar, formatPercent } from '../../ui';
+import { Badge, ProgressBar } from '../../ui';
+import { useJobWords } from '../../fleet/job-facts';
 import { MachineAge } from '../Age';
 import { Link } from '../router';
 import { cardFields, LINK_TONE, shownState } from '../status';
@@ -69,6 +70,7 @@ const ListRow = memo(function ListRow({ info }: { info: MachineInfo }) {
 
 function RowBody({ info, rt }: { info: MachineInfo; rt: MachineRuntime }) {
   const s = useSnapshot(rt, cardFields);
+  const job = useJobWords(info.id, s.job);
   const open = s.alarms.filter((a) => !a.acknowledged);
   const worst = mostSevereAlarm(open);
   const shown = shownState(s.activity, s.alarms);
@@ -98,12 +100,12 @@ function RowBody({ info, rt }: { info: MachineInfo; rt: MachineRuntime }) {
         </div>
       </td>
       <td className="fleet-list-job">
-        {s.job ? (
+        {s.job && job ? (
           <>
-            <div className="small fleet-list-label" title={s.job.name ?? undefined}>
-              {s.job.name ?? 'Job'} · {formatPercent(s.job.progress)}
+            <div className="small fleet-list-label" title={job.name}>
+              {job.name} · {job.percent}
             </div>
-            <ProgressBar value={s.job.progress} label={`${info.name} job progress`} />
+            <ProgressBar value={job.fraction} label={`${info.name} job progress`} />
           </>
         ) : (
           <span className="ui-muted small">No job</span>

@@ -4,7 +4,8 @@ import { linkWords, type MachineSession, type TabProps } from '../../fleet/contr
 import { showDetail, type MachineRuntime } from '../../fleet/fleet';
 import { useSnapshot } from '../../fleet/react';
 import { mostSevereAlarm, type Activity } from '../../fleet/types';
-import { Badge, Loading, ProgressBar, formatDuration, formatPercent } from '../../ui';
+import { Badge, Loading, ProgressBar } from '../../ui';
+import { useJobWords } from '../../fleet/job-facts';
 import { TouchLockPolicy } from '../../ui/Lockable';
 import { MachineAge } from '../Age';
 import { ErrorBoundary } from '../ErrorBoundary';
@@ -35,6 +36,8 @@ export function KioskPage({ rt }: { rt: MachineRuntime }) {
     identity: x.identity,
     retryAt: x.retryAt,
   }));
+  // The job in the words of every view: the server's record first (fleet/job-facts.ts).
+  const job = useJobWords(info.id, s.job);
   // The machine's details at full pace while the kiosk shows it (as the machine page does).
   useEffect(() => showDetail(info.id), [info.id]);
   // With the server's reading this is the first screen: the family's code may load now (boot.ts).
@@ -98,31 +101,28 @@ export function KioskPage({ rt }: { rt: MachineRuntime }) {
         </section>
 
         <section className="kiosk-job" aria-label="Job">
-          {s.job ? (
+          {s.job && job ? (
             <>
-              <div className="kiosk-job-name" title={s.job.name ?? undefined}>
-                {s.job.name ?? 'Job'}
+              <div className="kiosk-job-name" title={job.name} data-testid="kiosk-job-name">
+                {job.name}
               </div>
-              <ProgressBar value={s.job.progress} label="Job progress" />
+              <ProgressBar value={job.fraction} label="Job progress" />
               <div className="kiosk-figures">
                 <div>
                   <span className="kiosk-big" data-testid="kiosk-progress">
-                    {formatPercent(s.job.progress)}
+                    {job.fraction === null ? '—' : job.percent}
                   </span>
-                  <span className="kiosk-unit">done</span>
+                  <span className="kiosk-unit">{job.fraction === null ? job.percent : 'done'}</span>
                 </div>
                 <div>
                   <span className="kiosk-big" data-testid="kiosk-remaining">
-                    {s.job.remaining !== null
-                      ? formatDuration(s.job.remaining)
-                      : s.job.elapsed !== null
-                        ? formatDuration(s.job.elapsed)
-                        : '—'}
+                    {job.remainingFigure}
                   </span>
-                  <span className="kiosk-unit">
-                    {s.job.remaining === null && s.job.elapsed !== null ? 'elapsed' : 'left'}
-                  </span>
+                  <span className="kiosk-unit">{job.remainingNote}</span>
                 </div>
+              </div>
+              <div className="kiosk-running ui-muted" data-testid="kiosk-job-running">
+                {job.runningFor}
               </div>
             </>
           ) : (

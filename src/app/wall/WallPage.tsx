@@ -7,7 +7,8 @@ import { linkWords } from '../../fleet/contract';
 import { fleetStore, getRuntime, type MachineRuntime } from '../../fleet/fleet';
 import { useDerived, useNow, useSnapshot } from '../../fleet/react';
 import { mostSevereAlarm, type MachineInfo } from '../../fleet/types';
-import { Badge, ProgressBar, formatDuration, formatPercent, formatTime } from '../../ui';
+import { Badge, ProgressBar, formatTime } from '../../ui';
+import { useJobWords } from '../../fleet/job-facts';
 import { MachineAge } from '../Age';
 import { cardFields, LINK_TONE, shownState } from '../status';
 import { useRuntimesOf } from '../runtimes';
@@ -361,6 +362,8 @@ function WallCardBody({
   inSection?: boolean;
 }) {
   const s = useSnapshot(rt, cardFields);
+  // The job in the words of every view: the server's record first (fleet/job-facts.ts).
+  const job = useJobWords(info.id, s.job);
   const local = inAlarmForWall(s.alarms) ? mostSevereAlarm(s.alarms.filter((a) => !a.acknowledged)) : null;
   const alarm = local ?? server ?? null;
   const alarmed = alarm !== null;
@@ -405,13 +408,16 @@ function WallCardBody({
       ) : (
         <div className="wall-label">{s.activityLabel}</div>
       )}
-      {s.job && (
-        <div className="wall-job">
-          <div className="wall-job-name">{s.job.name ?? 'Job'}</div>
-          <ProgressBar value={s.job.progress} label={`${info.name} job progress`} />
+      {s.job && job && (
+        <div className="wall-job" data-testid="wall-job">
+          <div className="wall-job-name" data-testid="wall-job-name">
+            {job.name}
+          </div>
+          <ProgressBar value={job.fraction} label={`${info.name} job progress`} />
           <div className="wall-job-times">
-            <span>{formatPercent(s.job.progress)}</span>
-            {s.job.remaining !== null && <span>{formatDuration(s.job.remaining)} left</span>}
+            <span data-testid="wall-job-percent">{job.percent}</span>
+            <span data-testid="wall-job-running">{job.runningFor}</span>
+            <span data-testid="wall-job-remaining">{job.remaining}</span>
           </div>
         </div>
       )}

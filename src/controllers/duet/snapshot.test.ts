@@ -48,7 +48,8 @@ describe('snapshot mapping', () => {
     expect(job?.progress).toBeCloseTo(0.5, 3);
     expect(job?.remaining).toBe(300);
     const s = snapshotOf(m, () => 42);
-    expect(s.activityLabel).toBe('Printing Veil_Token.gcode · 49%');
+    // The percentage is the job line's alone (one record, one rounding: issue 33).
+    expect(s.activityLabel).toBe('Printing Veil_Token.gcode');
     expect(s.temperatures?.[0]).toEqual({ name: 'Bed', current: 59.5, target: 60 });
     expect(s.alarms?.map((a) => a.id)).toEqual(['heater-1-fault', 'messagebox-5']);
     expect(s.alarms?.[0]?.clears).toMatch(/M562 P1/);

@@ -1,5 +1,4 @@
 import type { Activity, Alarm, JobSummary, MachineSnapshot, Temperature } from '../../fleet/types';
-import { formatPercent } from '../../ui/format';
 import { baseName } from './client';
 import type { MachineStatus, ObjectModel } from './wire';
 
@@ -164,10 +163,9 @@ export function snapshotOf(m: ObjectModel, since: (id: string) => number): Parti
   const status = m.state.status;
   const job = jobSummary(m);
   let label = statusWords(status);
-  if (job && (status === 'processing' || status === 'simulating')) {
-    const p = job.progress;
-    label = `${label} ${job.name}${p !== null ? ` · ${formatPercent(Math.floor(p * 100) / 100)}` : ''}`;
-  }
+  // The job's name, not its percentage: that is the job line's, from the server's job record
+  // (fleet/job-facts.ts), so a tile never shows two percentages of one job (issue 33).
+  if (job && (status === 'processing' || status === 'simulating')) label = `${label} ${job.name}`;
   return {
     activity: activityOf(status),
     activityLabel: label,

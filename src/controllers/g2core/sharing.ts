@@ -1,13 +1,14 @@
 import {
   type SharingHints,
   type WatchDecl,
+  type WatchNews,
   type WatchSummary,
   watchAlarmsOf,
   watchStateOf,
 } from '../../fleet/contract';
 import { g2coreAccess } from './access';
-import { activityOf, alarmsOf, num } from './model';
-import { errorBody, statusReportResponse } from './wire';
+import { activityOf, alarmsOf, jobSummary, num } from './model';
+import { errorBody, jobListResponse, statusReportResponse } from './wire';
 
 /**
  * How the gateway shares one g2core controller among every viewer (Node-safe, pure: the gateway
@@ -90,6 +91,25 @@ export function readStatusReport(status: number, body: string): WatchSummary | E
 }
 
 /**
+ * `GET /job` → the running (or paused) job's name and progress (lines done over lines), the same
+ * reading the machine page makes (model.ts `jobSummary`), so the server's job record and the job
+ * history name the job as the tile does. Anything else: no news.
+ */
+export function readJobList(status: number, body: string): WatchNews | null {
+  if (status < 200 || status > 299) return null;
+  let json: unknown;
+  try {
+    json = JSON.parse(body);
+  } catch {
+    return null;
+  }
+  const p = jobListResponse.safeParse(json);
+  if (!p.success) return null;
+  const j = jobSummary(p.data, 0);
+  return j ? { job: j.name, progress: j.progress } : null;
+}
+
+/**
  * The watch: a full status report every 10 s. g2core stops by itself on a limit, an e-stop or a
  * fault (ALARM, SHUTDOWN, PANIC): nothing runs on unattended after it, so the record may come a
  * few seconds later; one small report every 10 s is nothing next to the console's four a second.
@@ -97,6 +117,8 @@ export function readStatusReport(status: number, body: string): WatchSummary | E
 export const g2coreWatch: WatchDecl = {
   everyMs: WATCH_EVERY_MS,
   poll: { path: '/status_report', read: readStatusReport },
+  // The report names no job: while one runs, the job list names it (and says how far it is).
+  jobPoll: { path: '/job', read: readJobList },
 };
 
 export const g2coreSharing: SharingHints = {

@@ -194,11 +194,12 @@ describe('xTool sharing: the watch', () => {
   it('reads every documented frame: alarms in words, states as the console counts them', () => {
     const read = (f: string) => readXtoolFrame(`${f}\n`);
     expect(read('ok:IDLE')).toEqual({ state: 'idle' });
-    expect(read('ok:WORKING_ONLINE')).toEqual({ state: 'running' });
+    // A software-run job is the uploaded /tmp.gcode: its name for the server's job record (issue 33).
+    expect(read('ok:WORKING_ONLINE')).toEqual({ state: 'running', job: 'tmp.gcode' });
     expect(read('ok:WORKING_OFFLINE')).toEqual({ state: 'running' });
     expect(read('ok:WORKING_FRAMING')).toEqual({ state: 'running' });
     // loaded, waiting for the button: nothing moves (README, "Activity")
-    expect(read('ok:WORKING_ONLINE_READY')).toEqual({ state: 'idle' });
+    expect(read('ok:WORKING_ONLINE_READY')).toEqual({ state: 'idle', job: 'tmp.gcode' });
     expect(read('ok:WORKING_FRAME_READY')).toEqual({ state: 'idle' });
     expect(read('ok:PAUSING')).toEqual({ state: 'paused' });
     expect(read('WORK_STOPPED')).toEqual({ state: 'running' });

@@ -141,7 +141,16 @@ export function readXtoolFrame(frame: string): WatchNews | null {
   if (f.kind === 'unknown') return null;
   const state = watchStateOf(toActivity(applyFrame(INITIAL_STATE, f).state));
   const alarm = alarmForFrame(f, 0);
-  return alarm ? { state, alarm: alarm.message, raise: watchAlarmsOf([alarm]) } : { state };
+  // A job loaded or run by software is the uploaded /tmp.gcode (model.ts `jobNameAfter`): its name
+  // for the server's job record and history, as the machine page says it.
+  const job =
+    f.kind === 'state' && (f.state === 'job-loaded' || f.state === 'running-online')
+      ? 'tmp.gcode'
+      : undefined;
+  const named = job ? { job } : {};
+  return alarm
+    ? { state, alarm: alarm.message, raise: watchAlarmsOf([alarm]), ...named }
+    : { state, ...named };
 }
 
 /**

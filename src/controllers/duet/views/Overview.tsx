@@ -1,4 +1,6 @@
 import type { TabProps } from '../../../fleet/contract';
+import { JobFacts } from '../../../fleet/JobFacts';
+import { useJobWords } from '../../../fleet/job-facts';
 import { CommandButton, useNow, useSnapshot, useStoreSelect } from '../../../fleet/react';
 import {
   Badge,
@@ -59,6 +61,8 @@ function JobPanel({ session }: { session: DuetSession }) {
   const ctx = session.ctx;
   const now = useNow(1000);
   const snap = useSnapshot(ctx, (s) => ({ link: s.link, label: s.activityLabel }));
+  const job = useSnapshot(ctx, (s) => s.job);
+  const words = useJobWords(session.machine.id, job);
   const d = useStoreSelect(session.store, (s) => {
     const m = s.model;
     return {
@@ -103,12 +107,14 @@ function JobPanel({ session }: { session: DuetSession }) {
           </div>
           <div className="ui-row" style={{ flexWrap: 'nowrap' }}>
             <div style={{ flex: 1 }}>
-              <ProgressBar value={d.progress} label="Job progress" />
+              <ProgressBar value={words?.fraction ?? null} label="Job progress" />
             </div>
             <div style={{ fontSize: 28, fontWeight: 700 }} data-testid="duet-job-progress">
-              {formatPercent(d.progress === null ? null : Math.floor(d.progress * 100) / 100)}
+              {words?.percent ?? '—'}
             </div>
           </div>
+          {/* The server's job record, as every view says it (fleet/job-facts.ts). */}
+          <JobFacts machine={session.machine.id} job={job} bar={false} />
           <KeyValues
             items={[
               ['Layer', d.layer !== null ? `${d.layer} of ${d.file.numLayers || '?'}` : '—'],

@@ -1,7 +1,9 @@
 import type { CommandDecl } from '../../../fleet/commands';
 import { useBlockedReason } from '../../../fleet/kernel';
 import { CommandButton, useSnapshot, useStoreSelect } from '../../../fleet/react';
-import { Notice, ProgressBar, formatDuration, formatNumber, type Tone } from '../../../ui';
+import { Notice, formatNumber, type Tone } from '../../../ui';
+import { JobFacts } from '../../../fleet/JobFacts';
+import { useJobWords } from '../../../fleet/job-facts';
 import { decodeEnum, statLabel } from '../codes';
 import type { G2coreSession } from '../session';
 import { isStuckInRun } from '../commands';
@@ -155,20 +157,17 @@ export function JobProgress({ session }: { session: G2coreSession }) {
     const j = d.jobs.find((x) => x.state.state === 'running' || x.state.state === 'paused');
     return j ? { done: j.done ?? null, total: j.lines ?? null } : null;
   });
+  const words = useJobWords(session.machine.id, job);
   if (!job) return null;
   return (
     <div data-testid="g2-job-progress">
       <div className="ui-row" style={{ justifyContent: 'space-between' }}>
-        <strong>{job.name}</strong>
+        <strong>{words?.name}</strong>
         <span data-testid="g2-job-lines">
           {lines?.done ?? '—'} / {lines?.total ?? '—'} lines
         </span>
       </div>
-      <ProgressBar value={job.progress} label="job progress" />
-      <div className="ui-muted">
-        elapsed {formatDuration(job.elapsed)} · remaining{' '}
-        {job.remaining === null ? '—' : `≈ ${formatDuration(job.remaining)}`}
-      </div>
+      <JobFacts machine={session.machine.id} job={job} />
     </div>
   );
 }

@@ -1,7 +1,8 @@
 import { useStore } from 'zustand';
 import { useSnapshot } from '../../../fleet/react';
-import { Badge, formatDuration, formatNumber, KeyValues, Notice, Panel } from '../../../ui';
+import { Badge, formatNumber, KeyValues, Notice, Panel } from '../../../ui';
 import type { TabProps } from '../../../fleet/contract';
+import { JobFacts } from '../../../fleet/JobFacts';
 import type { PruntSession } from '../session';
 import { RateSelect, StartupBanner, useWatchLive } from './common';
 import { UpdateLink } from './FilesTab';
@@ -43,15 +44,8 @@ export function OverviewTab({ session }: TabProps<PruntSession>) {
             </span>
           )}
         </div>
-        {snap.job && (
-          <KeyValues
-            items={[
-              ['File', snap.job.name],
-              ['Running for', formatDuration(snap.job.elapsed)],
-              ['Progress', 'not reported by Prunt (line only)'],
-            ]}
-          />
-        )}
+        {/* The server's job record, as every view says it (Prunt reports no progress: unknown). */}
+        <JobFacts machine={session.machine.id} job={snap.job} bar={false} />
       </Panel>
       <Panel title="Position">
         <KeyValues items={Object.entries(snap.positions).map(([k, v]) => [k, formatNumber(v, 3, 'mm')])} />

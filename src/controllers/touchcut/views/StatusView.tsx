@@ -1,5 +1,6 @@
 import { useState } from 'react';
 import type { TabProps } from '../../../fleet/contract';
+import { JobFacts } from '../../../fleet/JobFacts';
 import { describeError } from '../../../fleet/errors';
 import { CommandButton, useCan, useNow, useSnapshot, useStoreSelect } from '../../../fleet/react';
 import {
@@ -12,7 +13,6 @@ import {
   Panel,
   ProgressBar,
   formatAge,
-  formatDuration,
   formatPercent,
   formatTime,
 } from '../../../ui';
@@ -123,12 +123,11 @@ export function StatusView({ session }: TabProps<TouchcutSession>) {
           <div className="tc-big">
             {hasProgram(status.programName) ? status.programName : 'No active program'}
           </div>
-          <ProgressBar value={progress} label="program progress" />
+          {/* The server's job record, as every view says it (fleet/job-facts.ts). */}
+          <JobFacts machine={session.machine.id} job={snap.job ?? null} />
+          {!snap.job && <ProgressBar value={progress} label="program progress" />}
           <KeyValues
             items={[
-              ['Progress', progress === null ? '—' : formatPercent(progress, 1)],
-              ['Running for', formatDuration(snap.job?.elapsed)],
-              ['Remaining (estimate)', formatDuration(snap.job?.remaining)],
               ['Feed rate', `${num(status.feedrate, 1)} ${feed}`],
               [
                 'Feed override',

@@ -1,16 +1,7 @@
 import { useSnapshot, useStoreSelect } from '../../../fleet/react';
 import type { TabProps } from '../../../fleet/contract';
-import {
-  Badge,
-  KeyValues,
-  Notice,
-  Panel,
-  ProgressBar,
-  formatDuration,
-  formatNumber,
-  formatPercent,
-  type Tone,
-} from '../../../ui';
+import { JobFacts } from '../../../fleet/JobFacts';
+import { Badge, KeyValues, Notice, Panel, formatNumber, type Tone } from '../../../ui';
 import { GRID } from './layout';
 import type { XtoolSession } from '../session';
 import type { XState } from '../state';
@@ -78,17 +69,9 @@ export function Overview({ session }: TabProps<XtoolSession>) {
           )}
           {busy && snap.job && (
             <>
-              <ProgressBar value={snap.job.progress} label="job progress" />
-              <KeyValues
-                testId="xtool-job"
-                items={[
-                  ['Job', snap.job.name ?? '—'],
-                  ['Progress', formatPercent(snap.job.progress, 1)],
-                  ['Elapsed', formatDuration(snap.job.elapsed)],
-                  ['Remaining (estimate)', formatDuration(snap.job.remaining)],
-                  ['Current line', d.progress?.line ?? '—'],
-                ]}
-              />
+              {/* The server's job record, as every view says it (fleet/job-facts.ts). */}
+              <JobFacts machine={session.machine.id} job={snap.job} />
+              <KeyValues testId="xtool-job" items={[['Current line', d.progress?.line ?? '—']]} />
             </>
           )}
           <p className="ui-muted" style={{ margin: 0 }}>
