@@ -1,5 +1,5 @@
-import AxeBuilder from '@axe-core/playwright';
 import { expect, test, type Page, type TestInfo } from '@playwright/test';
+import { axeCheck } from './axe';
 import { DEMO_MACHINES, resetSimulators } from './simulators';
 
 /**
@@ -13,34 +13,8 @@ import { DEMO_MACHINES, resetSimulators } from './simulators';
  * Run: SHOPDECK_E2E_PORT=4196 npx playwright test tests/e2e/i33-a14-axe.spec.ts
  */
 
-const TAGS = ['wcag2a', 'wcag2aa', 'wcag21a', 'wcag21aa', 'wcag22aa', 'best-practice'];
-
 async function axeClean(page: Page, info: TestInfo, what: string): Promise<void> {
-  for (const scheme of ['light', 'dark'] as const) {
-    await page.emulateMedia({ colorScheme: scheme });
-    const results = await new AxeBuilder({ page }).withTags(TAGS).analyze();
-    if (results.violations.length)
-      await info.attach(`axe ${what} (${scheme})`, {
-        body: JSON.stringify(results.violations, null, 2),
-        contentType: 'application/json',
-      });
-    expect
-      .soft(
-        results.violations.map(
-          (v) =>
-            `${v.id} [${v.impact}] ${v.help}: ${v.nodes
-              .slice(0, 4)
-              .map(
-                (n) =>
-                  `${n.target.join(' ')}${n.failureSummary ? ` — ${n.failureSummary.split('\n')[1]?.trim() ?? ''}` : ''}`,
-              )
-              .join(' | ')}${v.nodes.length > 4 ? ` (+${v.nodes.length - 4} more)` : ''}`,
-        ),
-        `${what} (${scheme} theme)`,
-      )
-      .toEqual([]);
-  }
-  await page.emulateMedia({ colorScheme: null });
+  await axeCheck(page, info, what);
 }
 
 async function fleetOnline(page: Page, path = '/'): Promise<void> {
