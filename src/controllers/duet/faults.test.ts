@@ -10,6 +10,11 @@ import type { Simulator } from '../../fleet/sim';
 import { DuetClient, isAuthError, parseDuetError } from './client';
 import { DuetSession, PASSWORD_REFUSED, RESYNC_EVERY_MS } from './session';
 import { DuetSimulator } from './sim/simulator';
+// A connect answer DSF cannot have sent (the 'cut' fault) makes the client try a standalone board,
+// whose client is a dynamic import. Loaded here first: under fake timers a first import (read and
+// transformed from disk in real time) may not finish while the clock is advanced, and the test
+// then depended on whether another file in the same worker had loaded it before.
+import './rrf-client';
 
 /**
  * Issue 15 for the Duet: failed requests are link problems (never "Incompatible DCS version" nor
@@ -48,11 +53,7 @@ describe('Duet: no verdict from a failed request', () => {
     expect(parseDuetError(502, null, '')?.message).toMatch(/Incompatible DCS version/);
   });
 
-  // 'cut' (the connect answer cut after 20 bytes) is left out: on 2026-11-29 it began to hang in
-  // "connecting" on this machine on every tree, including trees where it had passed that morning
-  // here and in CI, with nothing installed in between; not understood yet, so not claimed (see the
-  // stop's note). A cut link is still tested while the model is polled, below.
-  it.each<Fault>(['gateway', 'gateway-body', 'network'])(
+  it.each<Fault>(['gateway', 'gateway-body', 'network', 'cut'])(
     'connect fails (%s): a link problem, retried quickly; back within 5 s',
     async (fault) => {
       vi.spyOn(Math, 'random').mockReturnValue(0.999);
