@@ -223,3 +223,12 @@ export function parseCookies(header: string | undefined): Record<string, string>
   }
   return out;
 }
+
+/** A URL path segment decoded, or '' when it is not valid percent-encoding (then it names nothing). */
+export function decodeSegment(raw: string): string {
+  try {
+    return decodeURIComponent(raw);
+  } catch {
+    return '';
+  }
+}

@@ -10,7 +10,7 @@ import {
 } from '../src/fleet/sim-panel';
 import { roleAtLeast } from '../src/fleet/types';
 import type { GatewayContext } from './context';
-import { clientAddress, readJson, sendJson } from './http-util';
+import { clientAddress, decodeSegment, readJson, sendJson } from './http-util';
 import type { MachineEntry } from './machines';
 
 /**
@@ -100,12 +100,7 @@ export function createSimApi(ctx: GatewayContext) {
       sendJson(res, 405, { error: 'GET or POST' }, { Allow: 'GET, POST' });
       return;
     }
-    let id = '';
-    try {
-      id = decodeURIComponent(rawId);
-    } catch {
-      id = '';
-    }
+    const id = decodeSegment(rawId);
     const address = clientAddress(req);
     const path = `/api/sim/${id.slice(0, 40)}`;
     const w = who(req, post);

@@ -1,7 +1,7 @@
 import type { IncomingMessage, ServerResponse } from 'node:http';
 import type { JsonRecord, TemperatureDecl, TemperatureReading } from '../src/fleet/contract';
 import type { GatewayContext } from './context';
-import { sendJson } from './http-util';
+import { decodeSegment, sendJson } from './http-util';
 
 /**
  * The last minutes of every machine's temperatures, kept in the gateway's memory (nothing on
@@ -313,12 +313,7 @@ export function createTemperaturesApi(ctx: GatewayContext, store: TemperatureSto
       ctx.needLogin(res, w);
       return;
     }
-    let id = '';
-    try {
-      id = decodeURIComponent(rawId);
-    } catch {
-      id = '';
-    }
+    const id = decodeSegment(rawId);
     const m = ctx.byId.get(id);
     if (!m || !ctx.mayUseMachine(w.principal, m.id)) {
       sendJson(res, 404, { error: 'no such machine' });
