@@ -57,6 +57,8 @@ export interface ApiStores {
   history?: History;
   /** What the gateway's watch knows of a machine now (watch.ts); absent: nothing is watched. */
   watched?: (id: string) => Watched | null;
+  /** Asks the watch of a machine to read it now (watch.ts `lookNow`); absent: nothing is watched. */
+  lookNow?: (id: string) => void;
   /** The last minutes of temperatures (temperatures.ts); absent: every machine has none. */
   temperatures?: TemperatureStore;
 }
@@ -143,7 +145,7 @@ export function createApi(ctx: GatewayContext, stores: ApiStores = createAlarmSt
     pins,
   } = ctx;
   const limits = limiter.opts;
-  const simApi = createSimApi(ctx);
+  const simApi = createSimApi(ctx, stores.lookNow);
   const temperaturesApi = createTemperaturesApi(
     ctx,
     stores.temperatures ?? new TemperatureStore(now, ctx.scrub),

@@ -119,6 +119,7 @@ export function createGateway(opts: GatewayOptions): Gateway {
       const w = watchById.get(id);
       return w ? { summary: w.current, lastSeen: w.lastSeen, job: w.job } : null;
     },
+    lookNow: (id) => watchById.get(id)?.lookNow(),
   });
   const { upgradeMachine, holdStream } = createWsProxy(ctx);
 

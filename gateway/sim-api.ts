@@ -89,7 +89,8 @@ function apply(ctx: GatewayContext, m: MachineEntry, sim: FaultySimulator, set: 
   }
 }
 
-export function createSimApi(ctx: GatewayContext) {
+/** `lookNow`: the watch reads the machine at once after a change (gateway.ts), so the alarm centre sees each. */
+export function createSimApi(ctx: GatewayContext, lookNow?: (id: string) => void) {
   const { who, byId, mayUseMachine, needLogin, record, simulatorFor } = ctx;
 
   return async function simApi(req: IncomingMessage, res: ServerResponse, rawId: string): Promise<void> {
@@ -181,6 +182,7 @@ export function createSimApi(ctx: GatewayContext) {
       return;
     }
     record({ ...entry, type: 'command', result: 'ok', label: `Simulator: ${label}`, status: 200 });
+    lookNow?.(m.id);
     const now = simulatorFor(m);
     sendJson(res, 200, now ? simPanel(m, now) : { machine: m.id, kind: m.kind, controls: [] });
   };

@@ -86,6 +86,48 @@ describe('MachineWatch', () => {
     expect(reads).toHaveLength(4);
   });
 
+  it('lookNow reads at once, and once more right after a poll in flight, so a cleared-and-raised alarm is seen as two', async () => {
+    let state = 'running';
+    let gate: (() => void) | null = null;
+    const reads: string[] = [];
+    const events: WatchEvent[] = [];
+    const decl: WatchDecl = {
+      everyMs: 10_000,
+      poll: {
+        path: '/status',
+        read: (_s, body) => (body === 'alarm' ? S('alarm', null, 'panic') : S('running')),
+      },
+    };
+    const w = new MachineWatch('m1', decl, {
+      read: async () => {
+        const seen = state;
+        reads.push(seen);
+        if (gate === null && reads.length === 3) await new Promise<void>((r) => (gate = r));
+        return { status: 200, body: seen };
+      },
+      report: (e) => events.push(e),
+    });
+    w.start();
+    await vi.advanceTimersByTimeAsync(1);
+    expect(reads).toEqual(['running']);
+    state = 'alarm';
+    w.lookNow();
+    await vi.advanceTimersByTimeAsync(1);
+    expect(reads).toEqual(['running', 'alarm']);
+    // Cleared: the read starts and is held in flight while the alarm is raised again.
+    state = 'running';
+    w.lookNow();
+    await vi.advanceTimersByTimeAsync(1);
+    expect(reads).toHaveLength(3);
+    state = 'alarm';
+    w.lookNow(); // during the poll in flight: another right after it
+    (gate as (() => void) | null)?.();
+    await vi.advanceTimersByTimeAsync(1);
+    expect(reads).toEqual(['running', 'alarm', 'running', 'alarm']);
+    expect(events.filter((e) => e.what === 'alarm')).toHaveLength(2);
+    w.stop();
+  });
+
   it('keeps the last summary through an unreachable controller or a bad answer, without throwing; a bad answer is said ("not read by the server")', async () => {
     let n = 0;
     const events: WatchEvent[] = [];

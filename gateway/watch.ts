@@ -124,6 +124,8 @@ export class MachineWatch {
   /** When the last good summary came (ms). */
   lastSeen: number | null = null;
   private jobRecord: WatchJobRecord | null = null;
+  /** `lookNow` came while a poll was in flight: the next poll follows at once. */
+  private again = false;
 
   constructor(
     readonly machine: string,
@@ -196,11 +198,31 @@ export class MachineWatch {
     if (this.failures >= OFFLINE_AFTER && this.summary.state !== 'offline') this.learn({ state: 'offline' });
   }
 
+  /**
+   * Reads the machine now instead of at its next turn (a poll already in flight is enough). Used
+   * when the server itself changed a simulated machine's world (sim-api.ts), so that a condition
+   * cleared and raised again is seen as two, not missed between two polls. A poll in flight may
+   * have read the machine before the change: another follows it at once.
+   */
+  lookNow(): void {
+    if (this.stopped || !this.decl.poll) return;
+    if (this.inFlight || !this.timer) {
+      this.again = true;
+      return;
+    }
+    clearTimeout(this.timer);
+    this.schedule(0);
+  }
+
   private schedule(ms: number): void {
     if (this.stopped) return;
     this.timer = setTimeout(() => {
       this.timer = null;
-      void this.poll().finally(() => this.schedule(this.decl.everyMs));
+      void this.poll().finally(() => {
+        const soon = this.again;
+        this.again = false;
+        this.schedule(soon ? 0 : this.decl.everyMs);
+      });
     }, ms);
   }
 
