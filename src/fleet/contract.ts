@@ -42,6 +42,24 @@ export interface FamilyDeclaration {
   /** The most of such a body the gateway reads (bytes), when more than its default (g2core's job upload). */
   accessBodyLimit?: (method: string, path: string) => number | undefined;
   gateway?: GatewayHints;
+  /**
+   * The family's job commands by what they do (ids of its declared commands): the job control row,
+   * the kiosk and the production history (which command started, paused or stopped a job) read
+   * them from here. A family whose API commands nothing (TouchCut) declares none.
+   */
+  jobs?: JobCommandIds;
+}
+
+/** A family's job commands by what they do (`X-Shopdeck-Command` ids, `<kind>.<command>`). */
+export interface JobCommandIds {
+  /** Starts a job from a file (the history attributes the job to who sent it). */
+  start?: string;
+  pause: string;
+  resume: string;
+  /** The job's stop (cancel, kill). */
+  stop: string;
+  /** The machine's emergency stop, where the console may send one (also ends the job). */
+  estop?: string;
 }
 
 /** A family as Node sees it (`<kind>/family.ts`): its declaration and its simulator. */

@@ -2,6 +2,7 @@ import { describe, expect, it } from 'vitest';
 import { loadController } from '../../controllers';
 import { createRuntime } from '../../fleet/fleet';
 import { alwaysVisible } from '../../fleet/link';
+import { families } from '../../controllers/families';
 import { MACHINE_KINDS } from '../../fleet/types';
 import { JOB_CONTROL_ROLE, KIOSK_FAMILIES } from './per-family';
 
@@ -29,5 +30,28 @@ describe('the job control row of each family', () => {
       }
     }
     expect(checked).toBeGreaterThanOrEqual(12);
+  });
+
+  it('are the job commands each family declares (its declaration’s jobs), and every declared one is a command', async () => {
+    for (const kind of MACHINE_KINDS) {
+      const jobs = families[kind].jobs;
+      const row = KIOSK_FAMILIES[kind];
+      expect(
+        row ? { pause: row.pause, resume: row.resume, stop: row.stop, estop: row.estop } : undefined,
+        kind,
+      ).toEqual(
+        jobs ? { pause: jobs.pause, resume: jobs.resume, stop: jobs.stop, estop: jobs.estop } : undefined,
+      );
+      if (!jobs) continue;
+      const mod = await loadController(kind);
+      const rt = createRuntime(
+        { id: `jobs-${kind}`, name: kind, kind, simulated: true },
+        (ctx) => mod.createSession(ctx),
+        {
+          visibility: alwaysVisible,
+        },
+      );
+      for (const id of Object.values(jobs)) expect(rt.session?.commands[id], `${kind}: ${id}`).toBeDefined();
+    }
   });
 });

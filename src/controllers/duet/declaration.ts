@@ -10,6 +10,13 @@ import { duetSharing } from './sharing';
 export const duetDeclaration: FamilyDeclaration = {
   kind: 'duet',
   label: 'Duet (RepRapFirmware)',
+  jobs: {
+    start: 'duet.start',
+    pause: 'duet.pause',
+    resume: 'duet.resume',
+    stop: 'duet.cancel',
+    estop: 'duet.estop',
+  },
   access: duetAccess,
   accessNeedsBody: duetAccessNeedsBody,
   gateway: {

@@ -10,6 +10,7 @@ import { g2coreSharing } from './sharing';
 export const g2coreDeclaration: FamilyDeclaration = {
   kind: 'g2core',
   label: 'g2core CNC',
+  jobs: { start: 'g2core.run-job', pause: 'g2core.feedhold', resume: 'g2core.resume', stop: 'g2core.kill' },
   access: g2coreAccess,
   accessNeedsBody: g2coreAccessNeedsBody,
   accessBodyLimit: g2coreAccessBodyLimit,

@@ -9,6 +9,7 @@ import { pruntSharing } from './sharing';
 export const pruntDeclaration: FamilyDeclaration = {
   kind: 'prunt',
   label: 'Prunt',
+  jobs: { start: 'prunt.runFile', pause: 'prunt.pause', resume: 'prunt.resume', stop: 'prunt.cancel' },
   access: pruntAccess,
   gateway: {
     // Pictures in the schema's help texts (`<image src="extras/images/stepper_1.png">`).

@@ -9,6 +9,7 @@ import { xtoolSharing } from './sharing';
 export const xtoolDeclaration: FamilyDeclaration = {
   kind: 'xtool',
   label: 'xTool D-series',
+  jobs: { start: 'xtool.run-file', pause: 'xtool.pause', resume: 'xtool.resume', stop: 'xtool.stop' },
   access: xtoolAccess,
   gateway: {
     // The status WebSocket is on :8081 of the same host (document, "TCP Ports"); the client
