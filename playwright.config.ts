@@ -1,4 +1,4 @@
-import { existsSync, mkdtempSync } from 'node:fs';
+import { existsSync, mkdirSync, mkdtempSync } from 'node:fs';
 import { tmpdir } from 'node:os';
 import { join } from 'node:path';
 import { defineConfig, devices } from '@playwright/test';
@@ -13,7 +13,10 @@ const launchOptions = {
 
 const port = Number(process.env.SHOPDECK_E2E_PORT ?? 4180);
 // Each run gets its own data folder (audit log), so tests never see another run's entries.
-const dataDir = process.env.SHOPDECK_E2E_DATA ?? mkdtempSync(join(tmpdir(), 'shopdeck-e2e-'));
+// (scripts/e2e.mjs runs the two projects side by side, each with its own port and folder.)
+const given = process.env.SHOPDECK_E2E_DATA;
+if (given) mkdirSync(given, { recursive: true });
+const dataDir = given || mkdtempSync(join(tmpdir(), 'shopdeck-e2e-'));
 process.env.SHOPDECK_E2E_DATA = dataDir;
 
 export default defineConfig({
