@@ -1,5 +1,6 @@
 import { afterEach, beforeEach, describe, expect, it, vi } from 'vitest';
 import type { WatchDecl, WatchSummary } from '../src/fleet/contract';
+import { xtoolWatch } from '../src/controllers/xtool/sharing';
 import { describeChange, MachineWatch, type WatchEvent } from './watch';
 
 beforeEach(() => {
@@ -235,6 +236,45 @@ describe('MachineWatch', () => {
     expect(holds).toHaveLength(2);
     w.stop();
     expect(holds[1]?.released).toBe(true);
+  });
+
+  it('an xTool job loaded by software and started with the button keeps its name through polls that name none (issue 33, 6)', async () => {
+    let working = '0';
+    const holds: Array<(f: string) => void> = [];
+    const w = new MachineWatch('laser', xtoolWatch, {
+      read: () => Promise.resolve({ status: 200, body: `{"result":"ok","working":"${working}"}` }),
+      hold: (_p, onFrame) => {
+        holds.push(onFrame);
+        return Promise.resolve(() => undefined);
+      },
+      report: () => undefined,
+    });
+    w.start();
+    await vi.advanceTimersByTimeAsync(1);
+    expect(w.job).toBeNull();
+    // Loaded and waiting for the button: the frame names it; the poll reads "2" (running).
+    holds[0]?.('ok:WORKING_ONLINE_READY\n');
+    working = '2';
+    await vi.advanceTimersByTimeAsync(10_000);
+    expect(w.current.state).toBe('running');
+    expect(w.job?.name).toBe('tmp.gcode');
+    // The button: a frame without a name, and more polls without one.
+    holds[0]?.('ok:WORKING_OFFLINE\n');
+    await vi.advanceTimersByTimeAsync(20_000);
+    expect(w.job?.name).toBe('tmp.gcode');
+    // Idle: the job is over, and the name is forgotten with it.
+    working = '0';
+    holds[0]?.('ok:IDLE\n');
+    await vi.advanceTimersByTimeAsync(10_000);
+    expect(w.job).toBeNull();
+    expect(w.current.job).toBeNull();
+    // A job from the laser's own memory later: no name, not the old one.
+    working = '2';
+    holds[0]?.('ok:WORKING_OFFLINE\n');
+    await vi.advanceTimersByTimeAsync(10_000);
+    expect(w.job).not.toBeNull();
+    expect(w.job?.name).toBeNull();
+    w.stop();
   });
 
   it('calls a machine offline after two failed reads in a row (during a job: an event of its own)', async () => {

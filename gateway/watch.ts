@@ -246,7 +246,7 @@ export class MachineWatch {
         this.unreachable();
         return;
       }
-      const s = read.read(a.status, a.body);
+      const s = read.read(a.status, a.body, this.summary);
       // Answered, but nothing the family reads: "not read by the server", said, never nothing.
       if (s instanceof Error) this.learn({ unread: s.message.slice(0, 300) });
       else this.learn({ ...s, ...(await this.jobNews(s)), unread: null });
@@ -263,9 +263,9 @@ export class MachineWatch {
    * The family's job read (`jobPoll`) when the poll found a job and named none: its name and
    * progress. Nothing when it fails (the summary stands; the record keeps what it had).
    */
-  private async jobNews(s: WatchSummary): Promise<WatchNews> {
+  private async jobNews(s: WatchNews): Promise<WatchNews> {
     const jp = this.decl.jobPoll;
-    if (!jp || s.job !== null || !JOB_STATES.has(s.state) || this.stopped) return {};
+    if (!jp || s.job !== null || !s.state || !JOB_STATES.has(s.state) || this.stopped) return {};
     try {
       const a = await this.host.read(jp.path);
       if (a.gateway || this.stopped) return {};

@@ -318,7 +318,14 @@ export function watchStateOf(a: Activity): WatchSummary['state'] {
 export interface WatchDecl {
   everyMs: number;
   /** A read (GET `path`) whose answer `read` turns into a summary. */
-  poll?: { path: string; read(status: number, body: string): WatchSummary | Error };
+  poll?: {
+    path: string;
+    /**
+     * The summary, or the part the answer tells (a field left out: the watch keeps what it knew).
+     * `known`: what the watch knew before this answer (an answer that cannot tell two states apart).
+     */
+    read(status: number, body: string, known?: WatchSummary): WatchSummary | WatchNews | Error;
+  };
   /** A shared stream kept open while the watch runs; `read` turns its frames into summaries (null: no news). */
   stream?: { path: string; read(frame: string): WatchNews | null };
   /**

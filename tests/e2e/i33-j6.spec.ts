@@ -147,18 +147,23 @@ test.describe('issue 33 item 6: job facts from one record', () => {
     await expect(page.getByTestId('kiosk-remaining')).not.toHaveText('—');
   });
 
-  // Known gap (see the stop's note): when the software-loaded job is started from the laser's
-  // button, the server's record may be made from a poll (which names no job) after the
-  // "job loaded" frame that named it, and the tile then reads "Unnamed job". Seen failing in the
-  // combined tree; left as fixme until the record keeps a name learnt while the job was loaded.
-  test.fixme('xTool: the job the laser names (tmp.gcode) is the same on the tile, the wall, the kiosk and its page', async ({
+  test('xTool: the job the laser names (tmp.gcode) is the same on the tile, the wall, the kiosk and its page', async ({
     page,
     request,
   }) => {
     const id = 'demo-xtool';
     await resetSimulators(request, [id]);
     await noJob(page, id);
-    await simulator(request, id, 'world', 'load-job');
+    // The operator presses the button once the laser says the job is loaded (a laser still
+    // stopping the last job ignores the load, and its button would run the card's file instead).
+    await expect(async () => {
+      await simulator(request, id, 'world', 'load-job');
+      const r = await request.get('/api/machines');
+      const { machines } = (await r.json()) as {
+        machines: Array<{ id: string; watch?: { job: string | null } }>;
+      };
+      expect(machines.find((m) => m.id === id)?.watch?.job).toBe('tmp.gcode');
+    }).toPass({ timeout: 20_000 });
     await simulator(request, id, 'world', 'button');
     await page.goto(`/m/${id}`);
     await expect(page.getByTestId('machine-activity')).toHaveText('Running');

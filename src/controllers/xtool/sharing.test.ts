@@ -173,8 +173,17 @@ describe('xTool sharing: the watch', () => {
       // the poll's full list: no alarm (it clears a flame the socket raised)
       alarms: [],
     });
-    expect(readWorkingSta(200, '{"result":"ok","working":"1"}')).toMatchObject({ state: 'running' });
+    // Running: the answer names no job, so it says nothing of the job (a frame's name is kept).
+    expect(readWorkingSta(200, '{"result":"ok","working":"1"}')).toEqual({
+      state: 'running',
+      alarm: null,
+      alarms: [],
+    });
     expect(readWorkingSta(200, '{"result":"ok","working":2}')).toMatchObject({ state: 'running' });
+    // Paused, as a frame said: "2" cannot tell paused from running, so the pause stays.
+    const paused = { state: 'paused', job: 'tmp.gcode', alarm: null } as const;
+    expect(readWorkingSta(200, '{"result":"ok","working":"2"}', paused)).toMatchObject({ state: 'paused' });
+    expect(readWorkingSta(200, '{"result":"ok","working":"0"}', paused)).toMatchObject({ state: 'idle' });
     expect(readWorkingSta(200, '{"result":"ok","working":"7"}')).toMatchObject({ state: 'unknown' });
   });
 
@@ -193,7 +202,8 @@ describe('xTool sharing: the watch', () => {
 
   it('reads every documented frame: alarms in words, states as the console counts them', () => {
     const read = (f: string) => readXtoolFrame(`${f}\n`);
-    expect(read('ok:IDLE')).toEqual({ state: 'idle' });
+    // Idle: nothing loaded any more, so no job name is kept.
+    expect(read('ok:IDLE')).toEqual({ state: 'idle', job: null });
     // A software-run job is the uploaded /tmp.gcode: its name for the server's job record (issue 33).
     expect(read('ok:WORKING_ONLINE')).toEqual({ state: 'running', job: 'tmp.gcode' });
     expect(read('ok:WORKING_OFFLINE')).toEqual({ state: 'running' });

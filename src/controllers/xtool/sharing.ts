@@ -115,7 +115,7 @@ export const xtoolStatusStream: FanoutStreamDecl = {
  * alarm: alarms come by the socket (`readXtoolFrame`), and this poll clears them once the laser
  * says where it is (the D-series has no alarm state: a sensor aborts the job and the laser is idle).
  */
-export function readWorkingSta(status: number, body: string): WatchSummary | Error {
+export function readWorkingSta(status: number, body: string, known?: WatchSummary): WatchNews | Error {
   if (status < 200 || status > 299) return new Error(`get_working_sta answered ${status}`);
   let json: unknown;
   try {
@@ -127,8 +127,15 @@ export function readWorkingSta(status: number, body: string): WatchSummary | Err
   if (vendor) return new Error(`get_working_sta: ${vendor.message}`);
   const p = workingStaSchema.safeParse(json);
   if (!p.success) return new Error('get_working_sta: no "working" in the answer');
-  const state = p.data.code === 'idle' ? 'idle' : p.data.code === 'unknown' ? 'unknown' : 'running';
-  return { state, alarm: null, job: null, alarms: [] };
+  // "1"/"2" is a job running or paused (the answer cannot tell them apart): a pause the socket
+  // said (ok:PAUSING) stays a pause until a frame says otherwise.
+  const busy = known?.state === 'paused' ? 'paused' : 'running';
+  const state = p.data.code === 'idle' ? 'idle' : p.data.code === 'unknown' ? 'unknown' : busy;
+  // Idle: no job. Running: the answer cannot name it, so it says nothing of it, and the name a
+  // frame gave (the loaded /tmp.gcode, started with the button) stays the job's (issue 33, 6).
+  return state === 'idle'
+    ? { state, alarm: null, job: null, alarms: [] }
+    : { state, alarm: null, alarms: [] };
 }
 
 /**
@@ -147,7 +154,8 @@ export function readXtoolFrame(frame: string): WatchNews | null {
     f.kind === 'state' && (f.state === 'job-loaded' || f.state === 'running-online')
       ? 'tmp.gcode'
       : undefined;
-  const named = job ? { job } : {};
+  // Idle: nothing loaded any more (a loaded job says so in its own frame, ok:WORKING_ONLINE_READY).
+  const named = job ? { job } : f.kind === 'state' && f.state === 'idle' ? { job: null } : {};
   return alarm
     ? { state, alarm: alarm.message, raise: watchAlarmsOf([alarm]), ...named }
     : { state, ...named };
