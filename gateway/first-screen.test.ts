@@ -28,6 +28,24 @@ describe('watchForPage', () => {
     expect(JSON.stringify(w)).not.toContain('hunter2');
   });
 
+  it('the job record a hostile controller named: scrubbed and cut like the rest, its start an age', () => {
+    const name = `<img src=x onerror=alert(1)> hunter2 ${'y'.repeat(5000)}`;
+    const w = watchForPage(
+      {
+        summary: { ...summary, state: 'running' },
+        lastSeen: 9_000,
+        job: { name, startedAt: 4_000, startSeen: true, progress: 0.5 },
+      },
+      10_500,
+      scrub,
+    );
+    const rec = w?.['record'] as { name: string; elapsedMs: number } | undefined;
+    expect(rec?.name.length).toBe(200);
+    expect(rec?.name).toMatch(/^<img src=x onerror=alert\(1\)> \[secret\] y+$/);
+    expect(rec?.elapsedMs).toBe(6_500);
+    expect(JSON.stringify(w)).not.toContain('hunter2');
+  });
+
   it('leaves out what it does not know: no watch, an unknown state, a progress out of range', () => {
     expect(watchForPage(null, 0, scrub)).toBeUndefined();
     expect(
