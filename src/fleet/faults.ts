@@ -86,11 +86,18 @@ export function quickRetry(ctx: SessionContext, tracker: LinkTracker, startedAt:
 
 /**
  * A liveness rule: no good answer for `windowMs` is silence, reported once (`onSilent`) until the
- * next good answer. Checked on the run's timers, so it ends with the run.
+ * next good answer. One timer of the run's, set for the moment the window ends: an answer moves
+ * that moment on without touching the timer (it fires, finds the window not over, and is set
+ * again for the rest), unless the window shrank (the slow-link rule) so that the moment came
+ * nearer. About one wake-up per answer instead of one every quarter (an xTool: tenth) of a
+ * second (issue 34); silence is seen at the window's end exactly. Ends with the run.
  */
 export class Liveness {
   private lastHeard = 0;
   private reported = false;
+  private timer: ReturnType<Lifecycle['setTimeout']> = null;
+  /** When the timer set fires (ms, `now`'s clock). */
+  private due = Infinity;
 
   constructor(
     private readonly o: {
@@ -98,25 +105,43 @@ export class Liveness {
       now: () => number;
       windowMs: () => number;
       onSilent: (quietMs: number) => void;
-      checkEveryMs?: number;
     },
   ) {}
 
   /** On start: the clock starts now. */
   start(): void {
-    this.heard();
-    this.o.life.setInterval(() => this.check(), this.o.checkEveryMs ?? 250);
+    this.lastHeard = this.o.now();
+    this.reported = false;
+    this.arm();
   }
 
   /** A good answer came. */
   heard(): void {
     this.lastHeard = this.o.now();
-    this.reported = false;
+    const end = this.lastHeard + this.o.windowMs();
+    if (this.reported || this.timer === null || end < this.due) {
+      this.reported = false;
+      this.arm();
+    }
+  }
+
+  private arm(): void {
+    this.o.life.clearTimeout(this.timer);
+    const now = this.o.now();
+    const left = Math.max(0, this.lastHeard + this.o.windowMs() - now);
+    this.due = now + left;
+    this.timer = this.o.life.setTimeout(() => this.check(), left);
   }
 
   private check(): void {
+    this.timer = null;
+    this.due = Infinity;
+    if (this.reported) return;
     const quiet = this.o.now() - this.lastHeard;
-    if (this.reported || quiet < this.o.windowMs()) return;
+    if (quiet < this.o.windowMs()) {
+      this.arm();
+      return;
+    }
     this.reported = true;
     this.o.onSilent(quiet);
   }

@@ -175,8 +175,6 @@ export class XtoolSession extends KernelSession {
         return ctx.visibility.hidden() ? HIDDEN_POLL_MS + window : window;
       },
       onSilent: (quiet) => this.silent(quiet),
-      // Checked often: silence shows within the window and a tenth of a second.
-      checkEveryMs: 100,
     });
     this.socket = this.stream(() => ({
       url: () => `${machineBase(this.machine.id)}/`,
