@@ -214,8 +214,6 @@ export interface HeartbeatPolicy {
   answerMs?: number;
   /** From connect to the first message (default `silenceMs` + `answerMs`). */
   firstMessageMs?: number;
-  /** How often the rule is checked (default min(500, silenceMs / 2)). */
-  checkEveryMs?: number;
   onDead?: (reason: string) => void;
 }
 
@@ -247,7 +245,8 @@ export class SocketLink {
   private lastMessageAt = 0;
   private pingSentAt: number | null = null;
   private gotFirst = false;
-  private watch: ReturnType<typeof setInterval> | null = null;
+  private watch: ReturnType<typeof setTimeout> | null = null;
+  private watchDue = Infinity;
   private readonly fallback: Poller | null;
   private readonly now: () => number;
 
@@ -293,24 +292,53 @@ export class SocketLink {
     if (!this.closedByUs) this.restart();
   }
 
-  private startWatch(): void {
+  /** When the heartbeat rule next has something to decide (null: no rule). */
+  private heartbeatDue(): number | null {
     const hb = this.opts.heartbeat;
-    if (!hb || this.watch) return;
-    this.watch = setInterval(() => this.checkHeartbeat(), hb.checkEveryMs ?? Math.min(500, hb.silenceMs / 2));
+    if (!hb) return null;
+    const answerMs = hb.answerMs ?? hb.silenceMs;
+    if (!this.gotFirst) return this.connectedAt + (hb.firstMessageMs ?? hb.silenceMs + answerMs);
+    if (this.pingSentAt !== null) return this.pingSentAt + answerMs;
+    return this.lastMessageAt + hb.silenceMs;
+  }
+
+  /**
+   * One timer set for that moment (issue 34: not an interval every half second per socket). A
+   * message moves the moment on without touching the timer: it fires, finds nothing due, and is
+   * set again for the rest; it is set anew only when the moment came nearer.
+   */
+  private startWatch(): void {
+    this.stopWatch();
+    const due = this.heartbeatDue();
+    if (due === null) return;
+    this.watchDue = due;
+    this.watch = setTimeout(
+      () => {
+        this.watch = null;
+        this.watchDue = Infinity;
+        this.checkHeartbeat();
+        if (!this.watch && !this.closedByUs && this.ws) this.startWatch();
+      },
+      Math.max(0, due - this.now()),
+    );
   }
 
   private stopWatch(): void {
-    if (this.watch) clearInterval(this.watch);
+    if (this.watch) clearTimeout(this.watch);
     this.watch = null;
+    this.watchDue = Infinity;
   }
 
   private heard(): void {
     this.lastMessageAt = this.now();
+    const answered = this.pingSentAt !== null;
     this.pingSentAt = null;
     if (!this.gotFirst) {
       this.gotFirst = true;
       this.fallback?.stop();
     }
+    const due = this.heartbeatDue();
+    if (due !== null && (answered || this.watch === null || due < this.watchDue)) this.startWatch();
   }
 
   /** The socket stopped delivering: poll in its place (when declared) until it is back. */

@@ -183,7 +183,6 @@ export class XtoolSession extends KernelSession {
       heartbeat: {
         silenceMs: SOCKET_QUIET_MS,
         firstMessageMs: SOCKET_QUIET_MS,
-        checkEveryMs: 5000,
         onDead: (why) => {
           this.detail.setState({ socketOpen: false });
           this.ctx.log.add('debug', 'link', `status socket: ${why}; reopening it`);

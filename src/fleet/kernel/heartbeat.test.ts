@@ -43,6 +43,35 @@ afterEach(() => {
 const last = () => FakeSocket.all[FakeSocket.all.length - 1] as FakeSocket;
 
 describe('SocketLink heartbeat policy', () => {
+  it('keeps one timer, not an interval: a message a second for a minute wakes it a few times, and silence is still seen on time (issue 34)', async () => {
+    const intervals = vi.spyOn(globalThis, 'setInterval');
+    const timeouts = vi.spyOn(globalThis, 'setTimeout');
+    const dead: string[] = [];
+    const link = new SocketLink({
+      url: () => 'ws://shopdeck.test/machines/p1/websocket',
+      onMessage: () => undefined,
+      heartbeat: { silenceMs: 10_000, onDead: (r) => dead.push(r) },
+      backoff: { baseMs: 100, maxMs: 100, jitter: 0 },
+    });
+    const s = last();
+    s.open();
+    const before = timeouts.mock.calls.length;
+    for (let i = 0; i < 60; i++) {
+      s.message('{"status":1}');
+      await vi.advanceTimersByTimeAsync(1000);
+    }
+    expect(intervals).not.toHaveBeenCalled();
+    // About one every silenceMs (an interval of min(500, silence / 2) woke 120 times).
+    expect(timeouts.mock.calls.length - before).toBeLessThanOrEqual(8);
+    expect(dead).toEqual([]);
+    // The last message came 1 s ago: dead 10 s after it, not before.
+    await vi.advanceTimersByTimeAsync(8_999);
+    expect(dead).toEqual([]);
+    await vi.advanceTimersByTimeAsync(1);
+    expect(dead).toEqual(['No data for 10 s']);
+    link.close();
+  });
+
   it('pings after silence, and a missing answer is a dead link: reported, then reconnected', async () => {
     const dead: string[] = [];
     const link = new SocketLink({
