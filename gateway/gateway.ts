@@ -277,6 +277,7 @@ export function createGateway(opts: GatewayOptions): Gateway {
     stopHistoryFeed();
     history.close(); // last-seen times written, the file closed (synchronous)
     ctx.sessions.close(); // the kept sessions' file (auth.ts)
+    ctx.users.close(); // the users file's folder watch (users.ts)
     webhook.close();
     alarms.close().catch((e: unknown) => {
       ctx.log.error('could not write the alarm list at shutdown', { error: String(e) });
