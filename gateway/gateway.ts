@@ -73,7 +73,6 @@ export function createGateway(opts: GatewayOptions): Gateway {
     openSockets,
     pending,
     httpAgent,
-    httpsAgent,
     hostAllowed,
     scrub,
     state,
@@ -291,7 +290,6 @@ export function createGateway(opts: GatewayOptions): Gateway {
     for (const s of sims.values()) s.dispose();
     sims.clear();
     httpAgent.destroy();
-    httpsAgent.destroy();
     ctx.upstream.close();
     // Queued audit entries are written and fsynced, the file closed; later ones are written
     // directly. A server awaits `audit.close()` (the same promise) before it exits.
