@@ -44,11 +44,15 @@ export default defineConfig({
             'scripts/**/*.test.ts',
             'tests/faults/**/*.test.ts',
           ],
-          exclude: ['tests/faults/matrix.test.ts'],
+          // The bundle guard reads dist/: it runs in `bundle`, after the build.
+          exclude: ['tests/faults/matrix.test.ts', 'gateway/bundle.test.ts'],
         },
       },
       { extends: true, test: { name: 'faults', include: ['tests/faults/matrix.test.ts'] } },
-      { extends: true, test: { name: 'bundle', include: ['tests/bundle/**/*.test.ts'] } },
+      {
+        extends: true,
+        test: { name: 'bundle', include: ['tests/bundle/**/*.test.ts', 'gateway/bundle.test.ts'] },
+      },
     ],
   },
 });

@@ -2,7 +2,6 @@ import { PinStore } from './tls-pin';
 import { StreamHubs } from './streams';
 import { secretPatterns } from './redact';
 import http, { type IncomingMessage, type ServerResponse } from 'node:http';
-import https from 'node:https';
 import { isIP } from 'node:net';
 import { WebSocket } from 'ws';
 import { defaultDecision, type AccessDecision, type AccessRequest } from '../src/fleet/access';
@@ -133,7 +132,6 @@ export interface GatewayContext {
   readonly openSockets: Set<WebSocket>;
   readonly pending: Set<http.ClientRequest>;
   readonly httpAgent: http.Agent;
-  readonly httpsAgent: https.Agent;
   /** Each machine's HTTP upstream, once: shared reads, read limits, keep-alive (upstream-http.ts). */
   readonly upstream: UpstreamHttp;
   /** Counters of a machine's upstream (benchmark, tests); null for an unknown machine. */
@@ -281,8 +279,8 @@ export function createContext(opts: GatewayOptions): GatewayContext {
   const openSockets = new Set<WebSocket>();
   const pending = new Set<http.ClientRequest>();
   const httpAgent = new http.Agent({ keepAlive: false });
-  // Controllers (TouchCut) use self-signed certificates: accepted on this agent only.
-  const httpsAgent = new https.Agent({ keepAlive: false, rejectUnauthorized: false });
+  // No https agent: an https:/wss: controller is reached only over a pinned TLS socket
+  // (tls-pin.ts connectPinned), whose certificate is checked before a byte is sent.
   const upstream = new UpstreamHttp({
     sharingOf: (m) => hintsOf(m).sharing,
     timeoutMs,
@@ -724,7 +722,6 @@ export function createContext(opts: GatewayOptions): GatewayContext {
     openSockets,
     pending,
     httpAgent,
-    httpsAgent,
     upstream,
     upstreamStats,
     hostAllowed,

@@ -73,7 +73,6 @@ export function createGateway(opts: GatewayOptions): Gateway {
     openSockets,
     pending,
     httpAgent,
-    httpsAgent,
     hostAllowed,
     scrub,
     state,
@@ -277,6 +276,7 @@ export function createGateway(opts: GatewayOptions): Gateway {
     stopHistoryFeed();
     history.close(); // last-seen times written, the file closed (synchronous)
     ctx.sessions.close(); // the kept sessions' file (auth.ts)
+    ctx.users.close(); // the users file's folder watch (users.ts)
     webhook.close();
     alarms.close().catch((e: unknown) => {
       ctx.log.error('could not write the alarm list at shutdown', { error: String(e) });
@@ -290,7 +290,6 @@ export function createGateway(opts: GatewayOptions): Gateway {
     for (const s of sims.values()) s.dispose();
     sims.clear();
     httpAgent.destroy();
-    httpsAgent.destroy();
     ctx.upstream.close();
     // Queued audit entries are written and fsynced, the file closed; later ones are written
     // directly. A server awaits `audit.close()` (the same promise) before it exits.

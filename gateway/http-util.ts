@@ -90,6 +90,21 @@ export class BodyTooLarge extends Error {
   }
 }
 
+const streamedBodies = new WeakSet<IncomingMessage>();
+
+/**
+ * The gateway passes this request's body on as it arrives (an upload streamed to a controller or
+ * a simulator): the server's body deadline (server/body-deadline.ts) then bounds its stalls, not
+ * its length in time.
+ */
+export function markStreamedBody(req: IncomingMessage): void {
+  streamedBodies.add(req);
+}
+
+export function isStreamedBody(req: IncomingMessage): boolean {
+  return streamedBodies.has(req);
+}
+
 /** Reads a request body into memory, refusing more than `limit` bytes. */
 export function readBody(req: IncomingMessage, limit: number): Promise<Buffer> {
   return new Promise((resolve, reject) => {

@@ -13,6 +13,7 @@ import {
   commandDeadlineMs,
   forwardRequestHeaders,
   forwardResponseHeaders,
+  markStreamedBody,
   readBody,
   secondsWords,
   sendJson,
@@ -450,7 +451,10 @@ export function createHttpProxy(ctx: GatewayContext) {
       return;
     }
     let body: Buffer | null = buffered;
-    if (!body && method !== 'GET' && method !== 'HEAD') body = await readBody(req, MAX_SIM_BODY);
+    if (!body && method !== 'GET' && method !== 'HEAD') {
+      markStreamedBody(req);
+      body = await readBody(req, MAX_SIM_BODY);
+    }
     if (watch?.stopped) return;
     // A simulator's request is aborted with the command (a simulator that waits may look at it).
     const abort = new AbortController();
@@ -777,7 +781,10 @@ export function createHttpProxy(ctx: GatewayContext) {
     else if (method === 'GET' || method === 'HEAD') {
       req.resume();
       upstream.end();
-    } else req.pipe(upstream);
+    } else {
+      markStreamedBody(req);
+      req.pipe(upstream);
+    }
   }
 
   /**

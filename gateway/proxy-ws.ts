@@ -434,10 +434,14 @@ export function createWsProxy(ctx: GatewayContext) {
   async function joinHub(
     m: MachineEntry,
     decl: SharedStreamDecl,
-    rawQuery: string,
+    query: string,
     held: HeldSocket | null,
   ): Promise<StreamHub | { status: number; error: string }> {
     const path = decl.path;
+    // Filtered here too, whatever the caller passed (streamQuery is idempotent): the key and the
+    // upstream URL never hold a browser's own query string (one upstream per declared stream).
+    const rawQuery = streamQuery(decl, query);
+    if (rawQuery instanceof Error) return { status: 400, error: rawQuery.message };
     const key = StreamHubs.key(m.id, path, rawQuery);
     return streams.get(key, async () => {
       const patterns = patternsFor(m);

@@ -710,8 +710,9 @@ export class StreamHubs {
   /** Hubs being opened: later viewers wait for the same opening. */
   private readonly opening = new Map<string, Promise<StreamHub | { status: number; error: string }>>();
 
-  static key(machine: string, path: string, rawQuery: string): string {
-    return `${machine}\u0000${path}\u0000${rawQuery}`;
+  /** `query`: the declared query only (`streamQuery`), never the browser's own string. */
+  static key(machine: string, path: string, query: string): string {
+    return `${machine}\u0000${path}\u0000${query}`;
   }
 
   /**

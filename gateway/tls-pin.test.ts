@@ -622,3 +622,38 @@ describe('pinInfo / listPins (GET /api/tls)', () => {
     expect(pinInfo(machines[5]!, store)).toBeNull();
   });
 });
+
+describe('no connection to a controller skips the certificate check but the pinned one', () => {
+  /** Product source (tests and test rigs aside), comments removed. */
+  function productSources(): Array<{ file: string; code: string }> {
+    const out: Array<{ file: string; code: string }> = [];
+    const walk = (dir: string): void => {
+      for (const e of readdirSync(dir, { withFileTypes: true })) {
+        const p = path.join(dir, e.name);
+        if (e.isDirectory()) {
+          if (e.name !== 'node_modules' && !e.name.startsWith('.')) walk(p);
+        } else if (/\.(ts|tsx|mjs)$/.test(e.name) && !/\.test\.|test-util|testkit|\.d\.ts$/.test(e.name)) {
+          const code = readFileSync(p, 'utf8')
+            .replace(/\/\*[\s\S]*?\*\//g, '')
+            .replace(/(^|[^:])\/\/.*$/gm, '$1');
+          out.push({ file: path.relative(process.cwd(), p).split(path.sep).join('/'), code });
+        }
+      }
+    };
+    for (const d of ['gateway', 'server', 'src', 'scripts']) walk(path.resolve(d));
+    return out;
+  }
+
+  it('only tls-pin.ts turns Node’s own check off (its pin replaces it); no agent or option elsewhere does', () => {
+    const files = productSources();
+    expect(files.length).toBeGreaterThan(50);
+    const skipping = files
+      .filter(({ code }) =>
+        /rejectUnauthorized\s*:\s*(false|0|!|null|undefined)|NODE_TLS_REJECT_UNAUTHORIZED|checkServerIdentity/.test(
+          code,
+        ),
+      )
+      .map((f) => f.file);
+    expect(skipping).toEqual(['gateway/tls-pin.ts']);
+  });
+});

@@ -8,7 +8,10 @@ import {
   renameSync,
   statSync,
   unlinkSync,
+  watch,
   writeSync,
+  type FSWatcher,
+  type Stats,
 } from 'node:fs';
 import os from 'node:os';
 import path from 'node:path';
@@ -368,9 +371,23 @@ export function checkSecret(secret: string, hash: string): Promise<boolean> {
   return bcrypt.compare(secret, hash);
 }
 
+export interface UserDirectoryOptions {
+  /**
+   * The file is looked at (one `stat`) at most this often, ms (default 1000), and at once after
+   * a change the file system reported (`fs.watch` on its folder): not on every request.
+   */
+  checkEveryMs?: number;
+  /** Watch the folder for changes (default true). */
+  watch?: boolean;
+  now?: () => number;
+  /** The `stat` used (tests count it). */
+  stat?: (file: string) => Stats;
+}
+
 /**
  * The users file as the gateway sees it: re-read when it changes on disk, so `npm run user`
- * takes effect without a restart. Once secured, a users file that disappears or breaks does
+ * takes effect without a restart (at once when the file system reports the change, within
+ * `checkEveryMs` when it does not). Once secured, a users file that disappears or breaks does
  * not open the console: it stays secured (and nobody can log in) until the file is fixed.
  */
 export class UserDirectory {
@@ -378,19 +395,55 @@ export class UserDirectory {
   private stamp: string;
   private secured: boolean;
   private gen = 0;
+  private checkedAt: number;
+  /** The watch saw something in the folder that may be the file: look before the next answer. */
+  private dirty = false;
+  private watcher: FSWatcher | null = null;
+  private readonly checkEveryMs: number;
+  private readonly now: () => number;
+  private readonly stat: (file: string) => Stats;
 
   constructor(
     readonly file: string,
     private readonly log: Logger = loggerFromEnv(),
+    opts: UserDirectoryOptions = {},
   ) {
+    this.checkEveryMs = opts.checkEveryMs ?? 1000;
+    this.now = opts.now ?? Date.now;
+    this.stat = opts.stat ?? statSync;
     this.users = readUsers(file);
     this.secured = this.users !== null;
     this.stamp = this.currentStamp();
+    this.checkedAt = this.now();
+    if (opts.watch ?? true) this.startWatch();
+  }
+
+  private startWatch(): void {
+    const name = path.basename(this.file);
+    try {
+      // The folder, not the file: `npm run user` replaces the file (an atomic rename).
+      this.watcher = watch(path.dirname(this.file), { persistent: false }, (_event, f) => {
+        if (f === null || f === name || f.startsWith(`${name}.`)) this.dirty = true;
+      });
+      this.watcher.on('error', () => {
+        // No more reports: the file is looked at every `checkEveryMs` as before.
+        this.watcher?.close();
+        this.watcher = null;
+      });
+    } catch {
+      this.watcher = null; // a folder that does not exist (yet): every `checkEveryMs`
+    }
+  }
+
+  /** Stops watching the folder (the gateway's close). */
+  close(): void {
+    this.watcher?.close();
+    this.watcher = null;
   }
 
   private currentStamp(): string {
     try {
-      const s = statSync(this.file);
+      const s = this.stat(this.file);
       return `${s.mtimeMs}:${s.size}:${s.ino}`;
     } catch {
       return 'missing';
@@ -398,6 +451,10 @@ export class UserDirectory {
   }
 
   private refresh(): void {
+    const t = this.now();
+    if (!this.dirty && t - this.checkedAt < this.checkEveryMs && t >= this.checkedAt) return;
+    this.dirty = false;
+    this.checkedAt = t;
     const stamp = this.currentStamp();
     if (stamp === this.stamp) return;
     this.stamp = stamp;

@@ -12,6 +12,7 @@ import { loadMachines, type MachinesConfig } from '../gateway/machines';
 import { pageHeadersMiddleware } from '../gateway/page-headers';
 import { openModeExposure } from '../gateway/plugin';
 import { dataDirPath, readUsers, usersFilePath } from '../gateway/users';
+import { guardBody, type BodyDeadline } from './body-deadline';
 import { createLogger, type Logger } from './log';
 import {
   cleanNames,
@@ -113,6 +114,13 @@ export interface ShopdeckServerOptions {
   logger?: Logger;
   /** How long `close()` may take before it cuts the last connections (default 4500 ms). */
   closeTimeoutMs?: number;
+  /**
+   * A request body the gateway reads itself must arrive within this (ms, default 120 s); a body
+   * it streams on to a controller (an upload) has no such deadline (server/body-deadline.ts).
+   */
+  bodyTimeoutMs?: number;
+  /** A streamed upload is cut when no byte of it came for this long (ms, default 60 s). */
+  uploadStallMs?: number;
 }
 
 export interface StartInfo {
@@ -270,6 +278,10 @@ export function createShopdeckServer(opts: ShopdeckServerOptions): ShopdeckServe
       ? (envPort(env, 'SHOPDECK_HTTP_REDIRECT_PORT') ?? null)
       : opts.httpRedirectPort;
   const closeTimeoutMs = opts.closeTimeoutMs ?? 4500;
+  const bodyDeadline: BodyDeadline = {
+    totalMs: opts.bodyTimeoutMs ?? 120_000,
+    stallMs: opts.uploadStallMs ?? 60_000,
+  };
 
   // Validated before anything listens: a bad file stops the server naming the file and the field.
   const machines = loadMachines({ machinesFile: opts.machinesFile, env, cwd });
@@ -454,6 +466,7 @@ export function createShopdeckServer(opts: ShopdeckServerOptions): ShopdeckServe
   }
 
   function handle(req: IncomingMessage, res: ServerResponse): void {
+    guardBody(req, res, bodyDeadline);
     if (tls) res.setHeader('Strict-Transport-Security', HSTS);
     if (stopping) res.setHeader('Connection', 'close');
     pageHeaders(req, res, () => {
@@ -474,9 +487,11 @@ export function createShopdeckServer(opts: ShopdeckServerOptions): ShopdeckServe
   const server: http.Server | https.Server = tls
     ? https.createServer({ key: tls.key, cert: tls.cert }, handle)
     : http.createServer(handle);
-  // The gateway bounds its own work; a slow client must not hold a request open for ever.
+  // The gateway bounds its own work; a slow client must not hold a request open for ever: the
+  // headers by Node (headersTimeout works without requestTimeout), the body by guardBody. Node's
+  // requestTimeout would cut an upload that takes long to send, so it is off.
   server.headersTimeout = 30_000;
-  server.requestTimeout = 120_000;
+  server.requestTimeout = 0;
   if (tls) server.on('tlsClientError', () => undefined); // a tablet refusing the certificate: not our error
 
   const upgraded = new Set<Duplex>();

@@ -6,6 +6,7 @@ import { pruntDeclaration } from './declaration';
 import {
   classifyPruntFrame,
   pruntFromBrowser,
+  PAGE_OPEN_WINDOW_MS,
   pruntShareRead,
   pruntSharing,
   pruntStream,
@@ -34,7 +35,7 @@ describe('Prunt sharing: the declaration', () => {
 });
 
 describe('Prunt sharing: reads', () => {
-  it('shares no HTTP read: the console polls none; every GET is a read (none audited)', () => {
+  it('shares only the page-open reads, briefly; every GET is a read (none audited)', () => {
     const gets = [
       '/config/schema',
       '/config/values',
@@ -50,7 +51,16 @@ describe('Prunt sharing: reads', () => {
       (p) => pruntAccess({ method: 'GET', path: p, query: new URLSearchParams() }).command,
     );
     expect(commands).toEqual([]);
-    for (const p of gets) expect(pruntShareRead(), p).toBeNull();
+    const none = new URLSearchParams();
+    const shared = gets.filter((p) => pruntShareRead(p, none) !== null);
+    expect(shared).toEqual(['/status/schema', '/update-check', '/update_check']);
+    for (const p of shared) expect(pruntShareRead(p, none)).toBe(PAGE_OPEN_WINDOW_MS);
+    expect(PAGE_OPEN_WINDOW_MS).toBeLessThanOrEqual(2000);
+    // Only in the form the console sends: with any query, not shared.
+    expect(pruntShareRead('/status/schema', new URLSearchParams('x=1'))).toBeNull();
+    // What follows a command (values after a pause, the configuration after a save): never.
+    expect(pruntShareRead('/status/values', none)).toBeNull();
+    expect(pruntShareRead('/config/values', none)).toBeNull();
   });
 });
 

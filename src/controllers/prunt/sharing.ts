@@ -26,14 +26,31 @@ export const MAX_DIVISOR = 2 ** 32 - 1;
 export const WATCH_EVERY_MS = 10_000;
 
 /**
- * No HTTP read is shared. The console polls none: status, logs and command progress come by the
- * socket. Its reads are on demand (schemas and the update check at connect and after a server
- * restart, the uploads list, files) or follow a command: `GET /status/values` right after a
- * pause must show the pause, so it may not be answered with a read from just before it; and
- * `GET /config/values` right after a save must show the save.
+ * How long a page-open read is shared: the tabs of a shop that open at once (a reload, a wall
+ * screen and a tablet) ask one question of the controller.
  */
-export function pruntShareRead(): number | null {
-  return null;
+export const PAGE_OPEN_WINDOW_MS = 2000;
+
+/**
+ * The reads every page makes when it opens (and after a server restart): the status schema and
+ * the update check (module API `/update-check`, 2025 flat API `/update_check`), without a query.
+ * Shared for PAGE_OPEN_WINDOW_MS: N tabs opened together make one request. The schema changes
+ * only with a restart of Prunt's server, which takes longer than the window; a restart from the
+ * console (`/reload-server`) is a command, and a command drops the machine's kept answers
+ * (gateway/upstream-http.ts).
+ */
+const PAGE_OPEN_READS = new Set(['/status/schema', '/update-check', '/update_check']);
+
+/**
+ * Nothing else is shared. The console polls no read: status, logs and command progress come by
+ * the socket. Its other reads are on demand (the uploads list, files, the configuration) or
+ * follow a command: `GET /status/values` right after a pause must show the pause, so it may not
+ * be answered with a read from just before it; and `GET /config/values` right after a save must
+ * show the save.
+ */
+export function pruntShareRead(path: string, query: URLSearchParams): number | null {
+  if ([...query.keys()].length > 0) return null;
+  return PAGE_OPEN_READS.has(path) ? PAGE_OPEN_WINDOW_MS : null;
 }
 
 // ---------------------------------------------------------------------------------- socket

@@ -8,8 +8,8 @@ import { touchcutSharing } from './sharing';
  * the gateway and the browser import it).
  *
  * Gateway notes for the lead:
- * - TouchCut serves HTTPS with its own self-signed certificate: accept it for TouchCut machines
- *   only (`rejectUnauthorized: false` on this machine's agent), never globally.
+ * - TouchCut serves HTTPS with its own self-signed certificate: the gateway pins it per machine
+ *   (gateway/tls-pin.ts: `tlsFingerprint`, or trust on first use), never accepts any certificate.
  * - The machine's `url` is the host; the client's paths already start with `/rest/v1/`.
  * - The gateway holds the TouchCut user login (`session`, gateway.ts): the JWT never reaches a
  *   browser; without one, `injectSecrets` adds the API key.

@@ -9,6 +9,7 @@ import {
   MonitorFeed,
   ScreenshotFeed,
   SCREENSHOT_MIN_GAP_MS,
+  SCREENSHOT_STARTS_KEPT,
   THUMBNAIL_INTERVAL_MS,
   type DeclarePoll,
   type FeedHost,
@@ -95,6 +96,23 @@ describe('screenshot limiter', () => {
     const n = screenshot.mock.calls.length;
     await vi.advanceTimersByTimeAsync(10_000);
     expect(screenshot.mock.calls.length).toBe(n);
+  });
+
+  it('keeps only the newest start times however long it runs (a wall screen runs for weeks)', async () => {
+    const screenshot = vi.fn(async () => ({ blob: new Blob([new Uint8Array([1])]), bytes: 1 }));
+    const { h } = host({ screenshot });
+    const feed = new ScreenshotFeed(h);
+    const off = feed.subscribe();
+    const n = SCREENSHOT_STARTS_KEPT * 5;
+    await vi.advanceTimersByTimeAsync(n * SCREENSHOT_MIN_GAP_MS);
+    off();
+    expect(feed.requests).toBeGreaterThanOrEqual(n);
+    expect(feed.starts).toHaveLength(SCREENSHOT_STARTS_KEPT);
+    // The newest ones: the last start is the last request's.
+    expect(Date.now() - (feed.starts.at(-1) ?? 0)).toBeLessThanOrEqual(SCREENSHOT_MIN_GAP_MS);
+    expect((feed.starts.at(-1) ?? 0) - (feed.starts[0] ?? 0)).toBe(
+      (SCREENSHOT_STARTS_KEPT - 1) * SCREENSHOT_MIN_GAP_MS,
+    );
   });
 
   it('sends nothing while the page is hidden and resumes when it is visible', async () => {

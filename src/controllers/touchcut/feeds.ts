@@ -119,6 +119,8 @@ export const THUMBNAIL_INTERVAL_MS = 10_000;
 /** After a failed request, or while the machine needs a login, look again after this long. */
 const SCREENSHOT_RETRY_MS = 5000;
 const SCREENSHOT_WAIT_MS = 2000;
+/** Start times kept in `ScreenshotFeed.starts` (the newest): a wall screen runs for weeks. */
+export const SCREENSHOT_STARTS_KEPT = 100;
 
 export interface ScreenshotState {
   blob: Blob | null;
@@ -148,7 +150,7 @@ export class ScreenshotFeed {
   private unsubscribeVis: (() => void) | null = null;
   /** Requests started (tests, benchmarks). */
   requests = 0;
-  /** Start times of every request (ms), for tests. */
+  /** Start times of the last `SCREENSHOT_STARTS_KEPT` requests (ms), for tests. */
   readonly starts: number[] = [];
 
   constructor(private readonly host: FeedHost) {}
@@ -203,7 +205,7 @@ export class ScreenshotFeed {
     this.lastStart = now;
     this.requests++;
     this.starts.push(now);
-    if (this.starts.length > 100) this.starts.shift();
+    if (this.starts.length > SCREENSHOT_STARTS_KEPT) this.starts.shift();
     this.store.setState({ loading: true });
     let failed = false;
     try {

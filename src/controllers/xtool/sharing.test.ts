@@ -92,14 +92,30 @@ describe('xTool sharing: reads', () => {
   it('shares the status poll with the busy period, settings and identity for a minute, and nothing else', () => {
     const shared = GETS.filter((raw) => share(raw) !== null);
     expect(shared.sort()).toEqual([
+      '/getlaserpowerinfo',
+      '/getlaserpowertype',
       '/getmachinetype',
       '/peripherystatus',
       '/progress',
       '/system?action=dotMode',
+      '/system?action=get_dev_name',
       '/system?action=get_working_sta',
+      '/system?action=mac',
       '/system?action=offset',
       '/system?action=version',
     ]);
+    // The identity every tab reads when it opens: one read a minute for all of them.
+    for (const raw of [
+      '/getmachinetype',
+      '/getlaserpowertype',
+      '/getlaserpowerinfo',
+      '/system?action=version',
+      '/system?action=mac',
+      '/system?action=get_dev_name',
+    ])
+      expect(share(raw), raw).toBe(60_000);
+    // The liveness check at connect is never answered from another tab's read.
+    expect(share('/ping')).toBeNull();
     // The settings: one read a minute for every tab (a settings command drops the kept answer).
     for (const raw of ['/peripherystatus', '/system?action=offset', '/system?action=dotMode'])
       expect(share(raw), raw).toBe(60_000);

@@ -36,7 +36,9 @@ export const WATCH_EVERY_MS = 10_000;
  *   once a minute by every tab (queries.ts SETTINGS_REFRESH_MS): one read a minute for all. A
  *   settings command must be seen at once: the gateway drops every kept answer of a machine when
  *   a command goes to it (gateway/upstream-http.ts), so the read after it goes to the laser.
- * - The identity at connect (`/getmachinetype`, `/system?action=version`): a minute.
+ * - The identity at connect (`/getmachinetype`, `/getlaserpowertype`, `/getlaserpowerinfo`,
+ *   `/system?action=version`, `mac`, `get_dev_name`): a minute (N tabs opening at once make one
+ *   request each; a rename, `set_dev_name`, is a command and drops the kept answers).
  * Each only in exactly the form the console sends (the ESP32 matches paths exactly; a second
  * `action` could be read differently by the firmware than by the access policy). Nothing else is
  * shared: the SD card listing and every GET that acts (`/cnc/data`, `/system?action=set…`,
@@ -50,11 +52,15 @@ const SHARED_SYSTEM_ACTIONS: Readonly<Record<string, number>> = {
   offset: SETTINGS_REFRESH_MS,
   dotMode: SETTINGS_REFRESH_MS,
   version: SETTINGS_REFRESH_MS,
+  mac: SETTINGS_REFRESH_MS,
+  get_dev_name: SETTINGS_REFRESH_MS,
 };
 const SHARED_PATHS: Readonly<Record<string, number>> = {
   '/progress': STATUS_WINDOW_MS,
   '/peripherystatus': SETTINGS_REFRESH_MS,
   '/getmachinetype': SETTINGS_REFRESH_MS,
+  '/getlaserpowertype': SETTINGS_REFRESH_MS,
+  '/getlaserpowerinfo': SETTINGS_REFRESH_MS,
 };
 
 export function xtoolShareRead(path: string, query: URLSearchParams): number | null {

@@ -220,6 +220,16 @@ describe('DuetSimulator', () => {
     expect(sim.answers.find((a) => a.seq === 4)?.cancelled).toBe(true);
   });
 
+  it('keeps only the newest 500 M292 answers (it runs as long as the gateway)', () => {
+    let last = 0;
+    for (let i = 0; i < 1200; i++) {
+      last = sim.raiseMessageBox(1);
+      sim.runCode(`M292 P0 S${last}`);
+    }
+    expect(sim.answers).toHaveLength(500);
+    expect(sim.answers.at(-1)?.seq).toBe(last);
+  });
+
   it('files: list, upload, info with thumbnails, move with 409, delete', async () => {
     const key = await connect();
     const list = (await (

@@ -92,7 +92,7 @@ export class DuetSimulator implements Simulator {
   model: JsonObject;
   readonly fs: MemFs;
   password: string | null;
-  /** Answers received with M292, for tests and the developer panel. */
+  /** The last 500 answers received with M292, for tests and the developer panel. */
   readonly answers: MessageBoxAnswer[] = [];
   /** Codes received, for tests. */
   readonly codes: string[] = [];
@@ -788,6 +788,7 @@ export class DuetSimulator implements Simulator {
       value = /^".*"$/.test(inner) ? inner.slice(1, -1).replace(/""/g, '"') : inner;
     }
     this.answers.push({ seq: Number(box['seq']), cancelled, value });
+    if (this.answers.length > 500) this.answers.splice(0, this.answers.length - 500);
     this.state['messageBox'] = null;
     return '';
   }

@@ -5,6 +5,7 @@ import {
   DEMO_PRESS_MS,
   DEMO_REST_MS,
   FRAMING_MS,
+  GCODE_KEPT,
   LINES_PER_SECOND,
   STOP_MS,
   XtoolSimulator,
@@ -47,6 +48,17 @@ describe('XtoolSimulator', () => {
     expect((await get('/system?action=setTiltCheckThreshold&tiltCheckThreshold=300')).body.result).toBe(
       'fail',
     );
+  });
+
+  it('keeps only the newest /cmd lines, however many come (it runs as long as the gateway)', async () => {
+    const cmd = (body: string) => sim.fetch(new Request('http://x/cmd', { method: 'POST', body }), '/cmd');
+    for (let i = 0; i < GCODE_KEPT * 3; i++) await cmd(`G0 X${i}`);
+    expect(sim.gcode).toHaveLength(GCODE_KEPT);
+    expect(sim.gcode.at(-1)).toBe(`G0 X${GCODE_KEPT * 3 - 1}`);
+    await cmd(Array.from({ length: GCODE_KEPT * 4 }, (_, i) => `G1 Y${i}`).join('\n'));
+    expect(sim.gcode).toHaveLength(GCODE_KEPT);
+    expect(sim.gcode[0]).toBe(`G1 Y${GCODE_KEPT * 3}`);
+    expect(sim.gcode.at(-1)).toBe(`G1 Y${GCODE_KEPT * 4 - 1}`);
   });
 
   it('sends nothing on connect, terminated frames after', () => {

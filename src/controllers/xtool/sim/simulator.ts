@@ -33,6 +33,8 @@ interface SimJob {
   online: boolean;
 }
 
+/** G-code lines of /cmd the simulator keeps (`gcode`, the newest). */
+export const GCODE_KEPT = 500;
 /** Frame terminator: the real firmware ends each frame with one extra character. */
 export const FRAME_TERMINATOR = '\n';
 /** Lines per second of a simulated job. */
@@ -64,7 +66,7 @@ export class XtoolSimulator implements Simulator {
   sdCard = true;
   /** Fault: uploads answer "ok" but store nothing. */
   uploadLies = false;
-  /** G-code received over /cmd, for tests and the log. */
+  /** The last `GCODE_KEPT` G-code lines received over /cmd, for tests and the log. */
   readonly gcode: string[] = [];
   private readonly sockets = new Set<SimSocket>();
   private readonly now: () => number;
@@ -433,7 +435,9 @@ export class XtoolSimulator implements Simulator {
       .map((l) => l.trim())
       .filter((l) => l !== '');
     if (lines.length === 0) return fail();
-    this.gcode.push(...lines);
+    // Bounded: the demo fleet's laser runs in the gateway for as long as the server does.
+    for (const l of lines.slice(-GCODE_KEPT)) this.gcode.push(l);
+    if (this.gcode.length > GCODE_KEPT) this.gcode.splice(0, this.gcode.length - GCODE_KEPT);
     return ok();
   }
 
