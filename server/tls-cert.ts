@@ -107,11 +107,6 @@ function bytes(b: Buffer): ArrayBuffer {
   return new Uint8Array(b).buffer;
 }
 
-function pem(label: string, der: Buffer): string {
-  const b64 = der.toString('base64').match(/.{1,64}/g) ?? [];
-  return `-----BEGIN ${label}-----\n${b64.join('\n')}\n-----END ${label}-----\n`;
-}
-
 interface CertSpec {
   subject: x509.Name;
   issuer: x509.Name;
@@ -249,9 +244,9 @@ export function makeCertificate(
       ),
     ],
   });
-  const ca = pem('CERTIFICATE', caDer);
+  const ca = new X509Certificate(caDer).toString();
   return {
-    cert: pem('CERTIFICATE', der) + ca,
+    cert: new X509Certificate(der).toString() + ca,
     key: keys.privateKey.export({ type: 'pkcs8', format: 'pem' }).toString(),
     ca,
   };
