@@ -57,6 +57,52 @@ describe('gateway log lines', () => {
     expect(loggerFromEnv({}).json).toBe(false);
   });
 
+  it('go once each to their level (info on stdout, warnings and errors on stderr), JSON fully escaped', () => {
+    for (const json of [false, true]) {
+      const s = sink(json);
+      const l = createLogger(s.opts);
+      l.info('i');
+      l.warn('w');
+      l.error('e');
+      expect(s.lines.map((x) => x.level)).toEqual(['info', 'warn', 'error']);
+    }
+    const out = vi.spyOn(process.stdout, 'write').mockImplementation(() => true);
+    const err = vi.spyOn(process.stderr, 'write').mockImplementation(() => true);
+    const l = createLogger({ now: () => new Date(0) });
+    l.info('to stdout');
+    l.warn('to stderr');
+    expect(out.mock.calls.map((c) => c[0])).toEqual(['shopdeck: to stdout\n']);
+    expect(err.mock.calls.map((c) => c[0])).toEqual(['shopdeck: warn: to stderr\n']);
+    out.mockRestore();
+    err.mockRestore();
+
+    // DEL, C1 and the line separators (left as they are by JSON) are escaped too; the JSON reads back.
+    const j = sink(true);
+    const text = 'a\u007f\u0085\u009b2J\u2028\u2029\n\u001bz';
+    createLogger(j.opts).info(text, { [text]: { nested: text } });
+    const line = j.lines[0]?.line ?? '';
+    // eslint-disable-next-line no-control-regex
+    expect(line).not.toMatch(/[\u0000-\u001f\u007f-\u009f\u2028\u2029]/);
+    expect(JSON.parse(line)).toEqual({
+      level: 'info',
+      time: '2026-03-01T10:00:00.000Z',
+      msg: text,
+      [text]: { nested: text },
+    });
+  });
+
+  it('a field that refers to itself is written, not thrown (a log call never breaks its caller)', () => {
+    for (const json of [false, true]) {
+      const s = sink(json);
+      const loop: Record<string, unknown> = { id: 'p1' };
+      loop.self = loop;
+      expect(() => createLogger(s.opts).warn('odd', { loop })).not.toThrow();
+      expect(s.lines).toHaveLength(1);
+      expect(s.lines[0]?.line).toContain('"id":"p1"');
+      expect(s.lines[0]?.line).toContain('[Circular]');
+    }
+  });
+
   it('say once per machine when it goes offline and when it comes back', () => {
     const s = sink(false);
     const r = new Reachability(createLogger(s.opts));

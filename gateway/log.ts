@@ -1,9 +1,15 @@
+import { pino, type DestinationStream, type Logger as PinoLogger } from 'pino';
+
 /**
- * The console's one log (the gateway's and the server's: `server/log.ts` re-exports it): plain
- * lines for a person at a terminal, or one JSON object a line (`SHOPDECK_LOG=json`) for journald,
- * Docker and log shippers: `{ time, level, msg, …fields }`. Text lines start `shopdeck:` (info) or
- * `shopdeck: <level>:`. The server hands its logger to the gateway (`GatewayOptions.log`); the
- * gateway's `Logger` is the part of it the gateway uses.
+ * The console's one log (the gateway's and the server's: `server/log.ts` re-exports it), on pino:
+ * one JSON object a line (`SHOPDECK_LOG=json`) for journald, Docker and log shippers,
+ * `{ level, time, …fields, msg }`, or plain lines for a person at a terminal. Text lines start
+ * `shopdeck:` (info) or `shopdeck: <level>:`. The server hands its logger to the gateway
+ * (`GatewayOptions.log`); the gateway's `Logger` is the part of it the gateway uses.
+ *
+ * Text is kept (not pino's JSON everywhere, nor pino-pretty): the operator's terminal, the server's
+ * tests and the docs read these lines, and a small destination turning pino's line into text is
+ * simpler than a second dependency or changing every reader. pino writes synchronously to it.
  *
  * Every value comes escaped: job names, alarm words, file names and user names come from
  * controllers and people, and a newline or a terminal escape in one must not forge a line or
@@ -52,38 +58,73 @@ export function escapeControls(text: string): string {
   return text.replace(CONTROL, (c) => SHORT[c] ?? `\\u${c.charCodeAt(0).toString(16).padStart(4, '0')}`);
 }
 
-/** JSON.stringify escapes C0 controls itself; DEL, C1 and the separators are escaped here too. */
+/** pino's JSON escapes C0 controls itself; DEL, C1 and the separators are escaped here too. */
 const JSON_LEFT = /[\u007f-\u009f\u2028\u2029]/g;
-function jsonLine(v: unknown): string {
-  return JSON.stringify(v).replace(JSON_LEFT, (c) => `\\u${c.charCodeAt(0).toString(16).padStart(4, '0')}`);
+function escapeJsonLine(line: string): string {
+  return line.replace(JSON_LEFT, (c) => `\\u${c.charCodeAt(0).toString(16).padStart(4, '0')}`);
 }
 
 function textValue(v: unknown): string {
   if (typeof v === 'string') return /[\s"=]/.test(v) || v === '' ? JSON.stringify(v) : v;
-  if (v instanceof Error) return JSON.stringify(v.message);
   return JSON.stringify(v) ?? String(v);
+}
+
+/** pino's entry as a text line: `shopdeck: [level: ]msg (k=v …)`, every part escaped. */
+function textLine(json: string, level: LogLevel): string {
+  const { level: _level, time: _time, msg, ...fields } = JSON.parse(json) as LogFields;
+  const extra = Object.entries(fields)
+    .map(([k, v]) => `${escapeControls(k)}=${escapeControls(textValue(v))}`)
+    .join(' ');
+  const prefix = level === 'info' ? 'shopdeck:' : `shopdeck: ${level}:`;
+  return `${prefix} ${escapeControls(typeof msg === 'string' ? msg : '')}${extra ? ` (${extra})` : ''}`;
+}
+
+/** One pino destination per level (pino's multistream with `dedupe` hands each entry to one). */
+function destination(
+  level: LogLevel,
+  json: boolean,
+  write: NonNullable<LoggerOptions['write']>,
+): DestinationStream {
+  return {
+    write(line: string): void {
+      const entry = line.endsWith('\n') ? line.slice(0, -1) : line;
+      write(json ? escapeJsonLine(entry) : textLine(entry, level), level);
+    },
+  };
+}
+
+/** The fields as logged: no `undefined`, an Error as its message, never over time, level or msg. */
+function cleanFields(fields: LogFields): LogFields {
+  const out: LogFields = {};
+  for (const [k, v] of Object.entries(fields)) {
+    if (k === 'time' || k === 'level' || k === 'msg' || v === undefined) continue;
+    out[k] = v instanceof Error ? v.message : v;
+  }
+  return out;
 }
 
 export function createLogger(opts: LoggerOptions = {}): ServerLogger {
   const json = opts.json ?? false;
   const write = opts.write ?? defaultWrite;
   const now = opts.now ?? (() => new Date());
+  const levels: LogLevel[] = ['info', 'warn', 'error'];
+  const log: PinoLogger = pino(
+    {
+      level: 'info',
+      base: undefined,
+      messageKey: 'msg',
+      timestamp: () => `,"time":"${now().toISOString()}"`,
+      formatters: { level: (label) => ({ level: label }) },
+      // Errors are turned into their message by cleanFields: no serializer adds a stack or a type.
+      serializers: {},
+    },
+    pino.multistream(
+      levels.map((level) => ({ level, stream: destination(level, json, write) })),
+      { dedupe: true },
+    ),
+  );
   const emit = (level: LogLevel, msg: string, fields: LogFields = {}): void => {
-    if (json) {
-      const entry: LogFields = { time: now().toISOString(), level, msg };
-      for (const [k, v] of Object.entries(fields)) {
-        if (k in entry || v === undefined) continue;
-        entry[k] = v instanceof Error ? v.message : v;
-      }
-      write(jsonLine(entry), level);
-      return;
-    }
-    const extra = Object.entries(fields)
-      .filter(([, v]) => v !== undefined)
-      .map(([k, v]) => `${escapeControls(k)}=${escapeControls(textValue(v))}`)
-      .join(' ');
-    const prefix = level === 'info' ? 'shopdeck:' : `shopdeck: ${level}:`;
-    write(`${prefix} ${escapeControls(msg)}${extra ? ` (${extra})` : ''}`, level);
+    log[level](cleanFields(fields), msg);
   };
   return {
     json,
@@ -91,6 +132,7 @@ export function createLogger(opts: LoggerOptions = {}): ServerLogger {
     warn: (msg, fields) => emit('warn', msg, fields),
     error: (msg, fields) => emit('error', msg, fields),
     banner(msg, text, fields) {
+      // For a person reading the terminal, not a log entry: printed as it is (escaped) in text mode.
       if (json) emit('info', msg, fields);
       else write(text.split('\n').map(escapeControls).join('\n'), 'info');
     },

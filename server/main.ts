@@ -1,5 +1,4 @@
-import path from 'node:path';
-import { fileURLToPath } from 'node:url';
+import { parseServerArgs, USAGE } from './args';
 import { loggerFromEnv } from './log';
 import { createShopdeckServer, type ShopdeckServer } from './server';
 
@@ -11,71 +10,10 @@ import { createShopdeckServer, type ShopdeckServer } from './server';
  * SIGTERM or SIGINT stops it gracefully, exit code 0, within 5 s.
  */
 
-const USAGE = `usage: tsx server/main.ts [--host [name]] [--port n] [--dist dir]
-  --host [name]  listen on this host (default SHOPDECK_HOST, else localhost); alone: every interface
-  --port n       listen on this port (default SHOPDECK_PORT, else PORT, else 4173; 0: any free port)
-  --dist dir     the built console (default dist/ of the project)`;
-
-const root = fileURLToPath(new URL('..', import.meta.url));
-
-interface Args {
-  host?: string | true;
-  port?: number;
-  dist: string;
-}
-
-function parseArgs(argv: readonly string[]): Args | { help: true } | { error: string } {
-  const out: Args = { dist: path.join(root, 'dist') };
-  for (let i = 0; i < argv.length; i++) {
-    const raw = argv[i] ?? '';
-    const eq = raw.indexOf('=');
-    const flag = eq > 0 ? raw.slice(0, eq) : raw;
-    const inline = eq > 0 ? raw.slice(eq + 1) : undefined;
-    const value = (): string | undefined => {
-      if (inline !== undefined) return inline;
-      const next = argv[i + 1];
-      if (next === undefined || next.startsWith('--')) return undefined;
-      i++;
-      return next;
-    };
-    switch (flag) {
-      case '--help':
-      case '-h':
-        return { help: true };
-      case '--host': {
-        const v = value();
-        out.host = v === undefined || v === 'true' ? true : v;
-        break;
-      }
-      case '--port': {
-        const v = value();
-        const n = Number(v);
-        if (v === undefined || !Number.isInteger(n) || n < 0 || n > 65535)
-          return { error: `--port needs a port number, not ${v ?? 'nothing'}` };
-        out.port = n;
-        break;
-      }
-      case '--dist':
-      case '--outDir': {
-        const v = value();
-        if (!v) return { error: `${flag} needs a folder` };
-        out.dist = path.resolve(v);
-        break;
-      }
-      // Accepted for the command lines written for `vite preview`: this server never moves to another port.
-      case '--strictPort':
-        break;
-      default:
-        return { error: `unknown option ${raw}` };
-    }
-  }
-  return out;
-}
-
 async function main(): Promise<void> {
   const env = process.env;
   const log = loggerFromEnv(env);
-  const args = parseArgs(process.argv.slice(2));
+  const args = parseServerArgs(process.argv.slice(2));
   if ('help' in args) {
     console.log(USAGE);
     return;

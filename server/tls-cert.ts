@@ -11,6 +11,8 @@ import { existsSync, mkdirSync, readFileSync, renameSync, statSync, writeFileSyn
 import { isIP } from 'node:net';
 import os from 'node:os';
 import path from 'node:path';
+import { AsnConvert, OctetString } from '@peculiar/asn1-schema';
+import * as x509 from '@peculiar/asn1-x509';
 
 /**
  * The console's own HTTPS certificate.
@@ -18,7 +20,8 @@ import path from 'node:path';
  * - `SHOPDECK_TLS_CERT` + `SHOPDECK_TLS_KEY`: PEM files the shop provides (`loadTlsFiles`); the
  *   certificate file may hold the chain after the server's certificate.
  * - `SHOPDECK_HTTPS=1`: a certificate made here and kept in `<data folder>/tls/`
- *   (`ensureSelfSigned`), built with node:crypto alone (no dependency, no openssl binary).
+ *   (`ensureSelfSigned`): keys and signatures by node:crypto, the certificate's structure by
+ *   @peculiar/asn1-x509 (no openssl binary).
  *
  * The made certificate is a pair: a small certificate authority ("Shopdeck local CA") that signs
  * one server certificate. A tablet trusts the CA (`shopdeck-ca.crt`: Android and iOS only accept
@@ -64,144 +67,80 @@ export class TlsSetupError extends Error {
   }
 }
 
-// ---------------------------------------------------------------- DER, just what X.509 needs
+// ---------------------------------------------------------------- X.509 (RFC 5280)
 
-function derLength(n: number): Buffer {
-  if (n < 0x80) return Buffer.from([n]);
-  const bytes: number[] = [];
-  for (let v = n; v > 0; v = Math.floor(v / 256)) bytes.unshift(v & 0xff);
-  return Buffer.from([0x80 | bytes.length, ...bytes]);
-}
-
-function tlv(tag: number, ...parts: Buffer[]): Buffer {
-  const body = Buffer.concat(parts);
-  return Buffer.concat([Buffer.from([tag]), derLength(body.length), body]);
-}
-
-const seq = (...parts: Buffer[]): Buffer => tlv(0x30, ...parts);
-const set = (...parts: Buffer[]): Buffer => tlv(0x31, ...parts);
-const octets = (b: Buffer): Buffer => tlv(0x04, b);
-const utf8 = (s: string): Buffer => tlv(0x0c, Buffer.from(s, 'utf8'));
-const bool = (v: boolean): Buffer => tlv(0x01, Buffer.from([v ? 0xff : 0]));
-const explicit = (n: number, inner: Buffer): Buffer => tlv(0xa0 | n, inner);
-const bits = (b: Buffer, unused = 0): Buffer => tlv(0x03, Buffer.from([unused]), b);
-
-function uint(b: Buffer): Buffer {
-  let i = 0;
-  while (i < b.length - 1 && b[i] === 0) i++;
-  const v = b.subarray(i);
-  return tlv(0x02, (v[0] ?? 0) & 0x80 ? Buffer.concat([Buffer.from([0]), v]) : v);
-}
-
-function oid(dotted: string): Buffer {
-  const [a = 0, b = 0, ...rest] = dotted.split('.').map(Number);
-  const out = [40 * a + b];
-  for (const n of rest) {
-    const chunk = [n & 0x7f];
-    for (let v = Math.floor(n / 128); v > 0; v = Math.floor(v / 128)) chunk.unshift(0x80 | (v & 0x7f));
-    out.push(...chunk);
-  }
-  return tlv(0x06, Buffer.from(out));
-}
-
-/** UTCTime before 2050, GeneralizedTime from then on (RFC 5280 4.1.2.5). */
-function time(d: Date): Buffer {
-  const iso = d
-    .toISOString()
-    .replace(/\.\d+Z$/, 'Z')
-    .replace(/[-:T]/g, '');
-  return d.getUTCFullYear() < 2050
-    ? tlv(0x17, Buffer.from(iso.slice(2), 'ascii'))
-    : tlv(0x18, Buffer.from(iso, 'ascii'));
-}
+// The certificate's structure is @peculiar/asn1-x509's (the ASN.1 layer of @peculiar/x509, by the
+// same authors); node:crypto makes the keys and signs. @peculiar/x509's own generator is not used:
+// it signs only through WebCrypto (a Promise, while `ensureSelfSigned` runs inside the server's
+// synchronous construction and its hourly refresh) and needs a global `reflect-metadata` polyfill.
 
 const OID = {
   ecdsaSha256: '1.2.840.10045.4.3.2',
   commonName: '2.5.4.3',
   organization: '2.5.4.10',
-  subjectKeyId: '2.5.29.14',
-  keyUsage: '2.5.29.15',
-  subjectAltName: '2.5.29.17',
-  basicConstraints: '2.5.29.19',
-  authorityKeyId: '2.5.29.35',
-  extKeyUsage: '2.5.29.37',
-  serverAuth: '1.3.6.1.5.5.7.3.1',
 };
 
-function ipBytes(ip: string): Buffer | null {
-  const v = isIP(ip);
-  if (v === 4) return Buffer.from(ip.split('.').map(Number));
-  if (v !== 6) return null;
-  let text = ip.replace(/%.*$/, '');
-  // An embedded IPv4 tail ("::ffff:10.0.0.1") becomes two groups.
-  const v4 = /(\d+\.\d+\.\d+\.\d+)$/.exec(text);
-  if (v4?.[1]) {
-    const [a = 0, b = 0, c = 0, d = 0] = v4[1].split('.').map(Number);
-    text = text.slice(0, -v4[1].length) + `${((a << 8) | b).toString(16)}:${((c << 8) | d).toString(16)}`;
-  }
-  const [head = '', tail] = text.split('::');
-  const h = head ? head.split(':') : [];
-  const t = tail ? tail.split(':') : [];
-  const groups = tail === undefined ? h : [...h, ...Array<string>(8 - h.length - t.length).fill('0'), ...t];
-  const out = Buffer.alloc(16);
-  groups.forEach((g, i) => out.writeUInt16BE(parseInt(g, 16), i * 2));
-  return out;
+/** An IPv6 address written one way (as WHATWG URL writes it: compressed, no IPv4 tail, no zone). */
+function canonicalIp(ip: string): string {
+  return isIP(ip) === 6 ? new URL(`http://[${ip.replace(/%.*$/, '')}]/`).hostname.slice(1, -1) : ip;
 }
 
-function altNames(names: readonly string[]): Buffer {
-  return seq(
-    ...names.map((n) => {
-      const ip = ipBytes(n);
-      return ip ? tlv(0x87, ip) : tlv(0x82, Buffer.from(n, 'ascii'));
-    }),
-  );
+function extension(extnID: string, critical: boolean, value: object): x509.Extension {
+  return new x509.Extension({ extnID, critical, extnValue: new OctetString(AsnConvert.serialize(value)) });
 }
 
-function extension(id: string, critical: boolean, value: Buffer): Buffer {
-  return seq(oid(id), ...(critical ? [bool(true)] : []), octets(value));
+function name(commonName: string): x509.Name {
+  const rdn = (type: string, text: string): x509.RelativeDistinguishedName =>
+    new x509.RelativeDistinguishedName([
+      new x509.AttributeTypeAndValue({ type, value: new x509.AttributeValue({ utf8String: text }) }),
+    ]);
+  return new x509.Name([rdn(OID.commonName, commonName), rdn(OID.organization, 'Shopdeck')]);
 }
 
-function name(commonName: string): Buffer {
-  return seq(
-    set(seq(oid(OID.commonName), utf8(commonName))),
-    set(seq(oid(OID.organization), utf8('Shopdeck'))),
-  );
+/** The key identifier of RFC 5280 4.2.1.2 (1): SHA-1 of the public key (here: of its SPKI). */
+function keyId(spki: Buffer): ArrayBuffer {
+  return bytes(createHash('sha1').update(spki).digest());
 }
 
-function keyId(spki: Buffer): Buffer {
-  return createHash('sha1').update(spki).digest();
-}
-
-function pem(label: string, der: Buffer): string {
-  const b64 = der.toString('base64').match(/.{1,64}/g) ?? [];
-  return `-----BEGIN ${label}-----\n${b64.join('\n')}\n-----END ${label}-----\n`;
+/** A Buffer's bytes as the ArrayBuffer the ASN.1 classes take. */
+function bytes(b: Buffer): ArrayBuffer {
+  return new Uint8Array(b).buffer;
 }
 
 interface CertSpec {
-  subject: Buffer;
-  issuer: Buffer;
+  subject: x509.Name;
+  issuer: x509.Name;
   spki: Buffer;
   notBefore: Date;
   notAfter: Date;
-  extensions: Buffer[];
+  extensions: x509.Extension[];
   signer: KeyObject;
 }
 
+/** A v3 certificate, signed with ECDSA and SHA-256 (a DER ECDSA-Sig-Value, node:crypto's default). */
 function certificate(spec: CertSpec): Buffer {
+  // A positive 128-bit serial with no leading zero byte.
   const serial = randomBytes(16);
   serial[0] = ((serial[0] ?? 0) & 0x7f) | 0x40;
-  const algorithm = seq(oid(OID.ecdsaSha256));
-  const tbs = seq(
-    explicit(0, uint(Buffer.from([2]))),
-    uint(serial),
-    algorithm,
-    spec.issuer,
-    seq(time(spec.notBefore), time(spec.notAfter)),
-    spec.subject,
-    spec.spki,
-    explicit(3, seq(...spec.extensions)),
-  );
-  return seq(tbs, algorithm, bits(sign('sha256', tbs, spec.signer)));
+  const algorithm = new x509.AlgorithmIdentifier({ algorithm: OID.ecdsaSha256 });
+  const tbsCertificate = new x509.TBSCertificate({
+    version: x509.Version.v3,
+    serialNumber: bytes(serial),
+    signature: algorithm,
+    issuer: spec.issuer,
+    // Time: UTCTime before 2050, GeneralizedTime from then on (RFC 5280 4.1.2.5).
+    validity: new x509.Validity({ notBefore: spec.notBefore, notAfter: spec.notAfter }),
+    subject: spec.subject,
+    subjectPublicKeyInfo: AsnConvert.parse(spec.spki, x509.SubjectPublicKeyInfo),
+    extensions: new x509.Extensions(spec.extensions),
+  });
+  const tbs = Buffer.from(AsnConvert.serialize(tbsCertificate));
+  const cert = new x509.Certificate({
+    tbsCertificate,
+    signatureAlgorithm: algorithm,
+    signatureValue: bytes(sign('sha256', tbs, spec.signer)),
+  });
+  return Buffer.from(AsnConvert.serialize(cert));
 }
 
 /** Valid host names and IP addresses, lower case, without duplicates. */
@@ -260,10 +199,17 @@ export function makeCertificate(
     notAfter: new Date(notAfter.getTime() + DAY),
     signer: caKeys.privateKey,
     extensions: [
-      extension(OID.basicConstraints, true, seq(bool(true), uint(Buffer.from([0])))),
-      // keyCertSign, cRLSign
-      extension(OID.keyUsage, true, bits(Buffer.from([0x06]), 1)),
-      extension(OID.subjectKeyId, false, octets(keyId(caSpki))),
+      extension(
+        x509.id_ce_basicConstraints,
+        true,
+        new x509.BasicConstraints({ cA: true, pathLenConstraint: 0 }),
+      ),
+      extension(
+        x509.id_ce_keyUsage,
+        true,
+        new x509.KeyUsage(x509.KeyUsageFlags.keyCertSign | x509.KeyUsageFlags.cRLSign),
+      ),
+      extension(x509.id_ce_subjectKeyIdentifier, false, new x509.SubjectKeyIdentifier(keyId(caSpki))),
     ],
   });
   const keys = generateKeyPairSync('ec', { namedCurve: 'P-256' });
@@ -276,18 +222,31 @@ export function makeCertificate(
     notAfter,
     signer: caKeys.privateKey,
     extensions: [
-      extension(OID.basicConstraints, true, seq()),
-      // digitalSignature
-      extension(OID.keyUsage, true, bits(Buffer.from([0x80]), 7)),
-      extension(OID.extKeyUsage, false, seq(oid(OID.serverAuth))),
-      extension(OID.subjectAltName, false, altNames(list)),
-      extension(OID.subjectKeyId, false, octets(keyId(spki))),
-      extension(OID.authorityKeyId, false, seq(tlv(0x80, keyId(caSpki)))),
+      extension(x509.id_ce_basicConstraints, true, new x509.BasicConstraints()),
+      extension(x509.id_ce_keyUsage, true, new x509.KeyUsage(x509.KeyUsageFlags.digitalSignature)),
+      extension(x509.id_ce_extKeyUsage, false, new x509.ExtendedKeyUsage([x509.id_kp_serverAuth])),
+      extension(
+        x509.id_ce_subjectAltName,
+        false,
+        new x509.SubjectAlternativeName(
+          list.map((n) =>
+            isIP(n)
+              ? new x509.GeneralName({ iPAddress: canonicalIp(n) })
+              : new x509.GeneralName({ dNSName: n }),
+          ),
+        ),
+      ),
+      extension(x509.id_ce_subjectKeyIdentifier, false, new x509.SubjectKeyIdentifier(keyId(spki))),
+      extension(
+        x509.id_ce_authorityKeyIdentifier,
+        false,
+        new x509.AuthorityKeyIdentifier({ keyIdentifier: new x509.KeyIdentifier(keyId(caSpki)) }),
+      ),
     ],
   });
-  const ca = pem('CERTIFICATE', caDer);
+  const ca = new X509Certificate(caDer).toString();
   return {
-    cert: pem('CERTIFICATE', der) + ca,
+    cert: new X509Certificate(der).toString() + ca,
     key: keys.privateKey.export({ type: 'pkcs8', format: 'pem' }).toString(),
     ca,
   };
@@ -311,9 +270,7 @@ function certsOf(text: string, file: string): X509Certificate[] {
 
 /** Same host name, or same address however it is written ("::1" and "0:0:0:0:0:0:0:1"). */
 function sameName(a: string, b: string): boolean {
-  const x = ipBytes(a);
-  const y = ipBytes(b);
-  return x && y ? x.equals(y) : a === b;
+  return isIP(a) && isIP(b) ? canonicalIp(a) === canonicalIp(b) : a === b;
 }
 
 function namesOf(x: X509Certificate): string[] {
