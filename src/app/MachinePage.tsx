@@ -42,8 +42,10 @@ export function MachinePage({ id, tab, kiosk = false }: { id: string; tab: strin
       </Notice>
     );
   }
+  // Keyed by the machine: the page shown for another machine (/m/a, then /m/b) starts afresh,
+  // nothing of A's tabs' state or error is B's.
   return (
-    <ErrorBoundary label={rt.info.name}>
+    <ErrorBoundary key={id} label={rt.info.name}>
       {kiosk ? (
         <Suspense fallback={<Loading />}>
           <KioskPage rt={rt} />
