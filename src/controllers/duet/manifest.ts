@@ -17,3 +17,10 @@ export const duetManifest: FamilyManifest = {
     keep: 'Keep printing',
   },
 };
+
+// The family's kind, added to `MachineKind` (src/fleet/types.ts).
+declare module '../../fleet/types' {
+  interface MachineKinds {
+    duet: true;
+  }
+}

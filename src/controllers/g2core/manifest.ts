@@ -12,3 +12,10 @@ export const g2coreManifest: FamilyManifest = {
     extra: () => import('./views/KioskExtra'),
   },
 };
+
+// The family's kind, added to `MachineKind` (src/fleet/types.ts).
+declare module '../../fleet/types' {
+  interface MachineKinds {
+    g2core: true;
+  }
+}

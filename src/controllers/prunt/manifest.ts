@@ -7,3 +7,10 @@ export const pruntManifest: FamilyManifest = {
   jobs: { start: 'prunt.runFile', pause: 'prunt.pause', resume: 'prunt.resume', stop: 'prunt.cancel' },
   kiosk: { terms: { stop: 'Cancel file' }, keep: 'Keep printing' },
 };
+
+// The family's kind, added to `MachineKind` (src/fleet/types.ts).
+declare module '../../fleet/types' {
+  interface MachineKinds {
+    prunt: true;
+  }
+}

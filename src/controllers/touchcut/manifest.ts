@@ -10,3 +10,10 @@ export const touchcutManifest: FamilyManifest = {
   label: 'Kinetic TouchCut',
   history: { statisticsDays: 'TouchCut days' },
 };
+
+// The family's kind, added to `MachineKind` (src/fleet/types.ts).
+declare module '../../fleet/types' {
+  interface MachineKinds {
+    touchcut: true;
+  }
+}

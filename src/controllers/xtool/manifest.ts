@@ -14,3 +14,10 @@ export const xtoolManifest: FamilyManifest = {
     },
   ],
 };
+
+// The family's kind, added to `MachineKind` (src/fleet/types.ts).
+declare module '../../fleet/types' {
+  interface MachineKinds {
+    xtool: true;
+  }
+}
