@@ -4,8 +4,12 @@ import reactHooks from 'eslint-plugin-react-hooks';
 import { createNodeResolver, importX } from 'eslint-plugin-import-x';
 import jsxA11y from 'eslint-plugin-jsx-a11y';
 import globals from 'globals';
+import { readdirSync } from 'node:fs';
 
-const families = ['xtool', 'touchcut', 'duet', 'prunt', 'g2core'];
+// The controller families: the folders of src/controllers (a family is its folder).
+const families = readdirSync(new URL('./src/controllers/', import.meta.url), { withFileTypes: true })
+  .filter((d) => d.isDirectory())
+  .map((d) => d.name);
 
 // Import boundaries are checked on the path an import RESOLVES to, so a folder index
 // ('../controllers', '..') or any other spelling of a path is no way around them.

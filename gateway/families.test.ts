@@ -1,7 +1,8 @@
 import path from 'node:path';
 import { afterEach, beforeAll, describe, expect, it } from 'vitest';
 import type { FamilyDescriptor } from '../src/fleet/contract';
-import { MACHINE_KINDS, ROLES, roleAtLeast, type MachineKind, type Role } from '../src/fleet/types';
+import { MACHINE_KINDS } from '../src/controllers';
+import { ROLES, roleAtLeast, type MachineKind, type Role } from '../src/fleet/types';
 import type { Families } from './gateway';
 import type { MachineEntry } from './machines';
 import { login, openWs, startGateway, startStub, tempDir, user, writeJson, consoleFetch } from './test-util';

@@ -1,11 +1,11 @@
 import { existsSync, readFileSync } from 'node:fs';
 import path from 'node:path';
 import { z } from 'zod';
+import { families } from '../src/controllers/families';
 import type { GatewaySecrets } from '../src/fleet/contract';
 import {
   MACHINE_APIS,
   MACHINE_ID,
-  MACHINE_KINDS,
   type MachineApi,
   type MachineInfo,
   type MachineKind,
@@ -74,6 +74,9 @@ export const DEMO_FLEET: ReadonlyArray<{ id: string; name: string; kind: Machine
 
 /** Control and format characters, line and paragraph separators: not printable in a group name. */
 const UNPRINTABLE = /[\p{Cc}\p{Cf}\p{Zl}\p{Zp}]/u;
+
+/** The kinds the machines file accepts: the families' (src/controllers/families.ts). */
+const MACHINE_KINDS = Object.keys(families) as [MachineKind, ...MachineKind[]];
 
 const entrySchema = z.strictObject({
   id: z.string({ error: 'missing or not a string' }).regex(MACHINE_ID, 'must be 1 to 40 of a-z, 0-9 and "-"'),

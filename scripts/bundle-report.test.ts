@@ -1,14 +1,15 @@
 import { describe, expect, it } from 'vitest';
 import { overBudget } from '../tests/bundle/budgets';
 import {
-  FIRST_TAB_VIEWS,
   closure,
+  familiesOnDisk,
   familyModule,
   screensOf,
   type AssetInfo,
   type ChunkInfo,
 } from './bundle-report';
-import { MACHINE_KINDS } from '../src/fleet/types';
+
+const FAMILIES = familiesOnDisk();
 
 const chunk = (file: string, gzip: number, more: Partial<ChunkInfo> = {}): ChunkInfo => ({
   file,
@@ -32,21 +33,28 @@ function build(): { chunks: ChunkInfo[]; css: AssetInfo[] } {
     chunk('machine.js', 6, { facade: 'src/app/MachinePage.tsx' }),
     chunk('kiosk.js', 3, { facade: 'src/app/kiosk/KioskPage.tsx' }),
     chunk('topbar.js', 2, { facade: 'src/app/TopBar.tsx' }),
-    chunk('overrides.js', 1, { facade: 'src/controllers/g2core/views/Overrides.tsx' }),
+    chunk('overrides.js', 1, { facade: 'src/controllers/g2core/views/KioskExtra.tsx' }),
     chunk('query.js', 11),
   ];
-  for (const kind of MACHINE_KINDS) {
-    chunks.push(chunk(`${kind}.js`, 10, { facade: familyModule(kind), imports: ['query.js', 'zod.js'] }));
-    chunks.push(chunk(`${kind}-tab.js`, 2, { facade: FIRST_TAB_VIEWS[kind], css: [`${kind}.css`] }));
+  for (const { kind, module, firstTab } of FAMILIES) {
+    chunks.push(chunk(`${kind}.js`, 10, { facade: module, imports: ['query.js', 'zod.js'] }));
+    chunks.push(chunk(`${kind}-tab.js`, 2, { facade: firstTab, css: [`${kind}.css`] }));
   }
   const css = [
     { file: 'index.css', bytes: 12, gzip: 4 },
-    ...MACHINE_KINDS.map((k) => ({ file: `${k}.css`, bytes: 3, gzip: 1 })),
+    ...FAMILIES.map(({ kind }) => ({ file: `${kind}.css`, bytes: 3, gzip: 1 })),
   ];
   return { chunks, css };
 }
 
 describe('bundle report', () => {
+  it("finds every family in src/controllers, and a kiosk view only where the family's manifest has one", () => {
+    expect(FAMILIES.map((f) => f.kind)).toEqual(['duet', 'g2core', 'prunt', 'touchcut', 'xtool']);
+    expect(FAMILIES.filter((f) => f.kioskExtra).map((f) => f.kioskExtra)).toEqual([
+      'src/controllers/g2core/views/KioskExtra.tsx',
+    ]);
+  });
+
   it('follows static imports, each file once, with their CSS', () => {
     const { chunks } = build();
     const all = new Map(chunks.map((c) => [c.file, c]));

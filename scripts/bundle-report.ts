@@ -6,22 +6,44 @@
  * machines need: the demo fleet has all five; a shop of one family loads one) and a machine page (the shell, its family and the
  * first tab). `tests/bundle/budget.test.ts` fails when a screen grows past its ceiling.
  */
-import { mkdirSync, writeFileSync } from 'node:fs';
+import { existsSync, mkdirSync, readdirSync, writeFileSync } from 'node:fs';
 import path from 'node:path';
+import { fileURLToPath } from 'node:url';
 import zlib from 'node:zlib';
 import type { Plugin } from 'vite';
-import { MACHINE_KINDS, type MachineKind } from '../src/fleet/types';
 
-/** Each family's first tab (what a machine page shows first); a test keeps this true. */
-export const FIRST_TAB_VIEWS: Record<MachineKind, string> = {
-  touchcut: 'src/controllers/touchcut/views/StatusView.tsx',
-  g2core: 'src/controllers/g2core/views/Overview.tsx',
-  duet: 'src/controllers/duet/views/Overview.tsx',
-  xtool: 'src/controllers/xtool/views/Overview.tsx',
-  prunt: 'src/controllers/prunt/views/OverviewTab.tsx',
-};
+/**
+ * A family's files the report follows, by the convention every family keeps (README, "Adding a
+ * controller family"): its page module, its first tab (`views/Overview.tsx`: what a machine page
+ * shows first) and, if it has one, the view its kiosk shows under the job controls
+ * (`views/KioskExtra.tsx`, its manifest's `kiosk.extra`). Tests keep the convention true.
+ */
+export interface FamilyFiles {
+  kind: string;
+  module: string;
+  firstTab: string;
+  kioskExtra: string | null;
+}
 
-export const familyModule = (kind: MachineKind): string => `src/controllers/${kind}/module.tsx`;
+export const familyModule = (kind: string): string => `src/controllers/${kind}/module.tsx`;
+export const familyFirstTab = (kind: string): string => `src/controllers/${kind}/views/Overview.tsx`;
+export const familyKioskExtra = (kind: string): string => `src/controllers/${kind}/views/KioskExtra.tsx`;
+
+const PROJECT = fileURLToPath(new URL('..', import.meta.url));
+
+/** The families: the folders of src/controllers (a family is its folder), with their files. */
+export function familiesOnDisk(root = PROJECT): FamilyFiles[] {
+  return readdirSync(path.join(root, 'src', 'controllers'), { withFileTypes: true })
+    .filter((d) => d.isDirectory())
+    .map((d) => d.name)
+    .sort()
+    .map((kind) => ({
+      kind,
+      module: familyModule(kind),
+      firstTab: familyFirstTab(kind),
+      kioskExtra: existsSync(path.join(root, familyKioskExtra(kind))) ? familyKioskExtra(kind) : null,
+    }));
+}
 
 /** The route chunks (src/app/pages.ts). */
 const FLEET_PAGE = 'src/app/FleetPage.tsx';
@@ -29,10 +51,6 @@ const MACHINE_PAGE = 'src/app/MachinePage.tsx';
 const KIOSK_PAGE = 'src/app/kiosk/KioskPage.tsx';
 /** The top bar: with every page but a kiosk tablet's. */
 const TOP_BAR = 'src/app/TopBar.tsx';
-/** The view a family's kiosk page shows below its controls (src/app/kiosk/per-family.ts). */
-export const KIOSK_EXTRA_VIEWS: Partial<Record<MachineKind, string>> = {
-  g2core: 'src/controllers/g2core/views/Overrides.tsx',
-};
 
 export interface ChunkInfo {
   file: string;
@@ -84,7 +102,11 @@ export function closure(
 }
 
 /** The screens of the report, from the chunks and CSS assets of one build. */
-export function screensOf(chunkList: ChunkInfo[], css: AssetInfo[]): Screen[] {
+export function screensOf(
+  chunkList: ChunkInfo[],
+  css: AssetInfo[],
+  families: readonly FamilyFiles[] = familiesOnDisk(),
+): Screen[] {
   const chunks = new Map(chunkList.map((c) => [c.file, c]));
   const size = new Map<string, AssetInfo>([...chunkList, ...css].map((a) => [a.file, a]));
   const screen = (name: string, files: Set<string>): Screen => {
@@ -116,8 +138,8 @@ export function screensOf(chunkList: ChunkInfo[], css: AssetInfo[]): Screen[] {
   // (KioskPage, first-screen.ts): the machine page's route and the kiosk view, no family yet.
   out.push(screen('kiosk page: first screen', closure(chunks, need(KIOSK_PAGE).file, new Set(machineRoute))));
   const machinePage = closure(chunks, need(TOP_BAR).file, new Set(machineRoute));
-  for (const kind of MACHINE_KINDS) {
-    const mod = need(familyModule(kind));
+  for (const { kind, module, firstTab, kioskExtra } of families) {
+    const mod = need(module);
     const withFamily = closure(chunks, mod.file, new Set(shell));
     out.push(
       screen(`fleet page, live tiles: ${kind} machines only`, closure(chunks, mod.file, new Set(fleetShell))),
@@ -126,12 +148,13 @@ export function screensOf(chunkList: ChunkInfo[], css: AssetInfo[]): Screen[] {
     const family = new Set([...withFamily].filter((f) => !shell.has(f)));
     out.push(screen(`family: ${kind}`, family));
     const page = closure(chunks, mod.file, new Set(machinePage));
-    out.push(screen(`machine page: ${kind}`, closure(chunks, need(FIRST_TAB_VIEWS[kind]).file, page)));
+    out.push(screen(`machine page: ${kind}`, closure(chunks, need(firstTab).file, page)));
     // Then, live, with its controls: the machine page's route, the kiosk view (no tabs), the
     // family and its kiosk view, if it has one.
     const kiosk = closure(chunks, need(KIOSK_PAGE).file, closure(chunks, mod.file, new Set(machineRoute)));
-    const extra = KIOSK_EXTRA_VIEWS[kind];
-    out.push(screen(`kiosk page, live: ${kind}`, extra ? closure(chunks, need(extra).file, kiosk) : kiosk));
+    out.push(
+      screen(`kiosk page, live: ${kind}`, kioskExtra ? closure(chunks, need(kioskExtra).file, kiosk) : kiosk),
+    );
   }
   out.push(screen('fleet page, live tiles: all five families', fleet));
   return out;
@@ -196,7 +219,7 @@ export function bundleReport(outDir?: string): Plugin {
           css.push({ file, bytes: Buffer.byteLength(data), gzip: gzipSize(data) });
         }
       }
-      const report: BundleReport = { chunks, css, screens: screensOf(chunks, css) };
+      const report: BundleReport = { chunks, css, screens: screensOf(chunks, css, familiesOnDisk(root)) };
       mkdirSync(reportDir, { recursive: true });
       writeFileSync(path.join(reportDir, 'bundle.json'), `${JSON.stringify(report, null, 1)}\n`);
       writeFileSync(path.join(reportDir, 'bundle.md'), reportMarkdown(report));

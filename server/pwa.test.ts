@@ -5,7 +5,7 @@ import path from 'node:path';
 import { build } from 'vite';
 import { afterAll, beforeAll, describe, expect, it } from 'vitest';
 import type { BundleReport } from '../scripts/bundle-report';
-import { MACHINE_KINDS } from '../src/fleet/types';
+import { MACHINE_KINDS } from '../src/controllers';
 import { NEVER_CACHED } from '../src/app/pwa/options';
 import { compressDist } from './compress';
 import { createLogger } from './log';

@@ -1,6 +1,6 @@
 import { memo, Suspense, useEffect, useId, useMemo } from 'react';
 import { useStore } from 'zustand';
-import { FAMILY_LABELS, useController } from '../controllers';
+import { familyLabel, useController } from '../controllers';
 import { getRuntime, fleetStore, type MachineRuntime } from '../fleet/fleet';
 import { lazyView, preloadViews } from '../fleet/lazy';
 import { linkWords } from '../fleet/contract';
@@ -215,7 +215,7 @@ function TileBody({ info, rt }: { info: MachineInfo; rt: MachineRuntime }) {
             </Link>
           </h3>
           <div className="ui-muted small">
-            {FAMILY_LABELS[info.kind]}
+            {familyLabel(info.kind)}
             {info.group && (
               <span className="tile-group" data-testid="tile-group">
                 {' · '}

@@ -1,6 +1,6 @@
 import { Suspense, useEffect, type ComponentType } from 'react';
 import { useStore } from 'zustand';
-import { FAMILY_LABELS, useController } from '../controllers';
+import { familyLabel, useController } from '../controllers';
 import { linkWords, type TabProps, type MachineSession } from '../fleet/contract';
 import { fleetStore, getRuntime, showDetail, type MachineRuntime } from '../fleet/fleet';
 import { lazyView, preloadViews, whenIdle } from '../fleet/lazy';
@@ -42,8 +42,10 @@ export function MachinePage({ id, tab, kiosk = false }: { id: string; tab: strin
       </Notice>
     );
   }
+  // Keyed by the machine: the page shown for another machine (/m/a, then /m/b) starts afresh,
+  // nothing of A's tabs' state or error is B's.
   return (
-    <ErrorBoundary label={rt.info.name}>
+    <ErrorBoundary key={id} label={rt.info.name}>
       {kiosk ? (
         <Suspense fallback={<Loading />}>
           <KioskPage rt={rt} />
@@ -100,7 +102,7 @@ function MachinePageBody({ rt, tab }: { rt: MachineRuntime; tab: string | null }
       <div className="machine-head">
         <div>
           <div className="crumbs ui-muted small">
-            <Link to="/">Fleet</Link> / {FAMILY_LABELS[info.kind]}
+            <Link to="/">Fleet</Link> / {familyLabel(info.kind)}
           </div>
           <h1>{info.name}</h1>
           <div className="ui-muted small">{s.identity ?? info.id}</div>

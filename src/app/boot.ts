@@ -1,5 +1,5 @@
 import { z } from 'zod/mini';
-import { FAMILY_LABELS, loadController, registerController } from '../controllers';
+import { familyLabel, loadController, MACHINE_KINDS, registerController } from '../controllers';
 import { authStore } from '../fleet/auth';
 import {
   allRuntimes,
@@ -12,7 +12,7 @@ import {
   type MachineRuntime,
 } from '../fleet/fleet';
 import { backoffDelay } from '../fleet/link';
-import { MACHINE_KINDS, type MachineInfo, type MachineKind, type ServerJobRecord } from '../fleet/types';
+import type { MachineInfo, MachineKind, ServerJobRecord } from '../fleet/types';
 import { CONSOLE_HEADERS } from '../fleet/origin';
 import { startReadSocket } from '../fleet/read-socket';
 import { setJobRecords } from '../fleet/job-records';
@@ -245,7 +245,7 @@ export function startFamily(kind: MachineKind, rts: MachineRuntime[], attempt = 
         attachSession(
           rt,
           null,
-          `The console could not load its ${FAMILY_LABELS[kind]} code (${why}). Reload the page.`,
+          `The console could not load its ${familyLabel(kind)} code (${why}). Reload the page.`,
         );
     },
   );

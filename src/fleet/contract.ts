@@ -1,4 +1,4 @@
-import type { ComponentType } from 'react';
+import type { ComponentType, ReactNode } from 'react';
 import type { StoreApi } from 'zustand/vanilla';
 import type { AccessPolicy, BodyNeeded } from './access';
 import type { CommandDecl, CommandRunner } from './commands';
@@ -60,6 +60,50 @@ export interface JobCommandIds {
   stop: string;
   /** The machine's emergency stop, where the console may send one (also ends the job). */
   estop?: string;
+}
+
+/** A control of the job control row (src/app/kiosk/JobControls.tsx). */
+export type JobControlKind = 'pause' | 'resume' | 'stop' | 'estop';
+
+/**
+ * A family's manifest (`<kind>/manifest.ts`): what the console knows of the family before its code
+ * loads. Plain data, small and Node-safe (no React, no views: loaders only): the shell carries
+ * every family's, and the family's declaration takes its kind, label and job commands from it.
+ * `src/controllers/index.ts` lists each family once, by its manifest and its page module.
+ */
+export interface FamilyManifest {
+  kind: MachineKind;
+  /** "xTool D-series" */
+  label: string;
+  /** The family's job commands by what they do (see `FamilyDeclaration.jobs`). */
+  jobs?: JobCommandIds;
+  /** The job control row's words of this family (with `jobs`; without it, state and progress only). */
+  kiosk?: KioskManifest;
+  /** Family-level pages outside any machine, routed at `/<kind>/<path>` (their code loads when shown). */
+  pages?: FamilyPageManifest[];
+  /** What the production history keeps of this family beyond jobs and states. */
+  history?: {
+    /** The name of the daily statistics the console server imports from its controllers. */
+    statisticsDays?: string;
+  };
+}
+
+export interface KioskManifest {
+  /** The firmware's own term for each control (the subtitle under the shared word). */
+  terms: Partial<Record<JobControlKind, string>>;
+  /** What dismissing the job stop's question keeps ("Keep printing"). */
+  keep: string;
+  /**
+   * A view of the family's own shown below the controls in the kiosk: by convention its
+   * `views/KioskExtra.tsx` (the bundle report looks for it there), a chunk of its own.
+   */
+  extra?: () => Promise<{ KioskExtra: (props: TabProps<never>) => ReactNode }>;
+}
+
+export interface FamilyPageManifest {
+  path: string;
+  label: string;
+  load: () => Promise<() => ReactNode>;
 }
 
 /** A family as Node sees it (`<kind>/family.ts`): its declaration and its simulator. */

@@ -3,8 +3,17 @@
  * browser, the gateway (Node) and the simulators.
  */
 
-export const MACHINE_KINDS = ['touchcut', 'g2core', 'duet', 'xtool', 'prunt'] as const;
-export type MachineKind = (typeof MACHINE_KINDS)[number];
+/**
+ * The kinds of machine, one per controller family. Each family adds its own in its manifest
+ * (`src/controllers/<kind>/manifest.ts`, by declaration merging: `declare module
+ * '../../fleet/types' { interface MachineKinds { xtool: true } }`), so this layer names no
+ * family and imports none, and `MachineKind` is still the union of the families' kinds. The
+ * list of them at run time is the registry's (`MACHINE_KINDS` in src/controllers/index.ts; the
+ * gateway's from src/controllers/families.ts).
+ */
+// eslint-disable-next-line @typescript-eslint/no-empty-object-type -- filled by the families' manifests
+export interface MachineKinds {}
+export type MachineKind = keyof MachineKinds & string;
 
 /**
  * Which API a machine speaks, where its family has more than one (the machines file's optional

@@ -22,7 +22,7 @@ import { mkdtempSync, rmSync, writeFileSync } from 'node:fs';
 import os from 'node:os';
 import path from 'node:path';
 import { type Browser, type CDPSession, type Page } from '@playwright/test';
-import { MACHINE_KINDS } from '../../src/fleet/types';
+import { MACHINE_KINDS } from '../../src/controllers';
 import { launchChromium, stopOnSignal, ensureDist, sleep, startServer, type Server } from './harness';
 import { median, report, round } from './util';
 

@@ -2,7 +2,7 @@ import { existsSync, readFileSync } from 'node:fs';
 import path from 'node:path';
 import { describe, expect, it } from 'vitest';
 import type { BundleReport } from '../../scripts/bundle-report';
-import { MACHINE_KINDS } from '../../src/fleet/types';
+import { MACHINE_KINDS } from '../../src/controllers';
 import { overBudget, SIZE_BUDGETS_KIB } from './budgets';
 
 /**

@@ -4,7 +4,7 @@ import type { MachineEntry } from '../../gateway/machines';
 import { startSimServer, type SimServer } from '../../gateway/sim-server';
 import { startGateway, tempDir, type Running } from '../../gateway/test-util';
 import { STALE_MS } from '../../src/app/status';
-import { loadController } from '../../src/controllers';
+import { loadController, MACHINE_KINDS } from '../../src/controllers';
 import { DuetSimulator } from '../../src/controllers/duet/sim/simulator';
 import { families } from '../../src/controllers/families';
 import type { PruntSession } from '../../src/controllers/prunt/session';
@@ -15,7 +15,7 @@ import { createContext } from '../../src/fleet/fleet';
 import { alwaysVisible } from '../../src/fleet/link';
 import { apiOrigin, setApiOrigin } from '../../src/fleet/origin';
 import type { Simulator } from '../../src/fleet/sim';
-import { MACHINE_KINDS, type LinkState, type MachineKind } from '../../src/fleet/types';
+import type { LinkState, MachineKind } from '../../src/fleet/types';
 import { startFaultProxy, type FaultMode, type FaultProxy } from './proxy';
 
 /**

@@ -1,7 +1,7 @@
 import { useEffect, useMemo, useState } from 'react';
 import { z } from 'zod/mini';
 import { useStore } from 'zustand';
-import { FAMILY_LABELS } from '../../controllers';
+import { familyLabel } from '../../controllers';
 import { fleetStore } from '../../fleet/fleet';
 import { CONSOLE_HEADERS } from '../../fleet/origin';
 import { useCan } from '../../fleet/react';
@@ -383,13 +383,7 @@ export function AlarmsPage() {
             value={filters.family}
             onChange={(v) => set('family', v)}
             testId="alarm-filter-family"
-            options={[
-              ['', 'All families'],
-              ...families.map((f): [string, string] => [
-                f,
-                FAMILY_LABELS[f as keyof typeof FAMILY_LABELS] ?? f,
-              ]),
-            ]}
+            options={[['', 'All families'], ...families.map((f): [string, string] => [f, familyLabel(f)])]}
           />
           <FilterSelect
             label="Severity"

@@ -1,6 +1,6 @@
 import './list.css';
 import { Component, memo, type ReactNode } from 'react';
-import { FAMILY_LABELS } from '../../controllers';
+import { familyLabel } from '../../controllers';
 import { linkWords } from '../../fleet/contract';
 import { getRuntime, type MachineRuntime } from '../../fleet/fleet';
 import { useSnapshot } from '../../fleet/react';
@@ -90,7 +90,7 @@ function RowBody({ info, rt }: { info: MachineInfo; rt: MachineRuntime }) {
           </div>
         )}
       </td>
-      <td className="small">{FAMILY_LABELS[info.kind]}</td>
+      <td className="small">{familyLabel(info.kind)}</td>
       <td>
         <Badge tone={shown.tone} testId="row-activity">
           {shown.words}

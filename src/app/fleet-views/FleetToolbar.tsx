@@ -1,6 +1,6 @@
 import './fleet-views.css';
 import { useId, useSyncExternalStore } from 'react';
-import { FAMILY_LABELS } from '../../controllers';
+import { familyLabel } from '../../controllers';
 import type { MachineInfo } from '../../fleet/types';
 import { STATE_CLASS_WORDS } from './arrange';
 import type { FleetPrefs } from './prefs';
@@ -90,7 +90,7 @@ export function FleetToolbar(props: {
   const families: Record<string, string> = { all: 'All families' };
   // A family filter from a bookmark stays selectable even when no machine of it is left.
   for (const k of [...machines.map((m) => m.kind), prefs.family])
-    if (k !== 'all') families[k] = FAMILY_LABELS[k];
+    if (k !== 'all') families[k] = familyLabel(k);
   const filtered = prefs.state !== 'all' || prefs.family !== 'all' || prefs.q.trim() !== '';
   const common = { prefs, update };
   const folded = useCoarsePointer();

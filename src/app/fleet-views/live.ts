@@ -1,8 +1,8 @@
 import { useMemo, useSyncExternalStore } from 'react';
-import { FAMILY_LABELS } from '../../controllers';
+import { familyLabel } from '../../controllers';
 import { getRuntime, type MachineRuntime } from '../../fleet/fleet';
 import { derivedStore } from '../../fleet/react';
-import type { MachineInfo, MachineKind } from '../../fleet/types';
+import type { MachineInfo } from '../../fleet/types';
 import {
   arrangeFleet,
   needsState,
@@ -13,7 +13,7 @@ import {
 } from './arrange';
 import type { FleetPrefs } from './prefs';
 
-export const familyLabel = (kind: MachineKind): string => FAMILY_LABELS[kind];
+export { familyLabel };
 
 /** A machine's state now, from its snapshot. */
 export function liveState(id: string): StateClass {

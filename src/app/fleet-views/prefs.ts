@@ -1,5 +1,6 @@
 import { createStore } from 'zustand/vanilla';
-import { MACHINE_KINDS, type MachineKind } from '../../fleet/types';
+import { MACHINE_KINDS } from '../../controllers';
+import type { MachineKind } from '../../fleet/types';
 
 /**
  * How the fleet page shows the fleet: view, sort, filters and grouping. Kept per browser

@@ -1,4 +1,5 @@
 import { useEffect, useState } from 'react';
+import { MANIFESTS } from '../../controllers';
 import { Button, Field, KeyValues, Notice, Panel, formatBytes, formatDateTime, type Tone } from '../../ui';
 import { request, settingsAnswerSchema, type HistoryInfo, type Shift } from './api';
 
@@ -15,6 +16,12 @@ function draftOf(info: HistoryInfo): Draft {
     statesDays: String(info.retention.statesDays),
   };
 }
+
+/**
+ * The daily statistics the console server imports (`counts` and `oldest` of the history's info),
+ * named as the family that has them names them in its manifest.
+ */
+const STATISTICS_DAYS = MANIFESTS.find((m) => m.history?.statisticsDays)?.history?.statisticsDays;
 
 /** Supervisors: the shifts, how long the history is kept, and how big its file is. */
 export function HistorySettings(props: { info: HistoryInfo | null; onSaved: () => void }) {
@@ -64,10 +71,14 @@ export function HistorySettings(props: { info: HistoryInfo | null; onSaved: () =
           ['History file', formatBytes(info.sizeBytes)],
           ['Jobs kept', `${info.counts.jobs} (oldest ${formatDateTime(info.oldest.jobAt)})`],
           ['State changes kept', `${info.counts.states} (oldest ${formatDateTime(info.oldest.stateAt)})`],
-          [
-            'TouchCut days',
-            `${info.counts.touchcutDays}${info.oldest.touchcutDay ? ` (oldest ${info.oldest.touchcutDay})` : ''}`,
-          ],
+          ...(STATISTICS_DAYS
+            ? [
+                [
+                  STATISTICS_DAYS,
+                  `${info.counts.touchcutDays}${info.oldest.touchcutDay ? ` (oldest ${info.oldest.touchcutDay})` : ''}`,
+                ] satisfies [string, string],
+              ]
+            : []),
         ]}
       />
       <form

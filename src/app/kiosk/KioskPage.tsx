@@ -1,5 +1,5 @@
 import { Suspense, useEffect, useMemo, type ComponentType } from 'react';
-import { FAMILY_LABELS, useController } from '../../controllers';
+import { familyLabel, useController } from '../../controllers';
 import { linkWords, type MachineSession, type TabProps } from '../../fleet/contract';
 import { showDetail, type MachineRuntime } from '../../fleet/fleet';
 import { useSnapshot } from '../../fleet/react';
@@ -63,7 +63,7 @@ export function KioskPage({ rt }: { rt: MachineRuntime }) {
           <div className="kiosk-title">
             <h1>{info.name}</h1>
             <div className="ui-muted">
-              {FAMILY_LABELS[info.kind]}
+              {familyLabel(info.kind)}
               {s.identity ? ` · ${s.identity}` : ''}
             </div>
           </div>

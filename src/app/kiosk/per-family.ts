@@ -1,10 +1,10 @@
 import type { ComponentType } from 'react';
-import type { MachineSession, TabProps } from '../../fleet/contract';
+import { MANIFESTS } from '../../controllers';
+import type { JobControlKind, MachineSession, TabProps } from '../../fleet/contract';
 import { lazyView } from '../../fleet/lazy';
 import type { MachineKind, Role } from '../../fleet/types';
 
-/** A job control of the shared row (src/app/kiosk/JobControls.tsx). */
-export type JobControlKind = 'pause' | 'resume' | 'stop' | 'estop';
+export type { JobControlKind };
 
 /**
  * The role every family declares for its job controls (pause, resume, stop job, emergency stop):
@@ -25,10 +25,11 @@ export const JOB_CONTROL_WORDS: Record<JobControlKind, string> = {
 };
 
 /**
- * What the kiosk page and the machine page's job control row offer for each family: the ids of
- * its declared job commands (the same declarations, roles, confirmations and audit as every other
- * button) and, optionally, a view of the family's own shown below them in the kiosk (a chunk of
- * its own). A family missing here shows state and progress only.
+ * What the kiosk page and the machine page's job control row offer for each family, from its
+ * manifest: the ids of its declared job commands (`jobs`: the same declarations, roles,
+ * confirmations and audit as every other button), its `kiosk` words and, optionally, a view of
+ * the family's own shown below them in the kiosk (a chunk of its own). A family whose manifest
+ * has no `jobs` or no `kiosk` shows state and progress only.
  */
 export interface KioskFamily {
   pause: string;
@@ -44,41 +45,22 @@ export interface KioskFamily {
   Extra?: ComponentType<TabProps<MachineSession>>;
 }
 
-export const KIOSK_FAMILIES: Partial<Record<MachineKind, KioskFamily>> = {
-  xtool: {
-    pause: 'xtool.pause',
-    resume: 'xtool.resume',
-    stop: 'xtool.stop',
-    terms: { stop: 'Stop' },
-    keep: 'Keep cutting',
-  },
-  // Duet cancels only a paused print (as Duet Web Control): pause first, then cancel.
-  duet: {
-    pause: 'duet.pause',
-    resume: 'duet.resume',
-    stop: 'duet.cancel',
-    estop: 'duet.estop',
-    terms: { pause: 'M25', resume: 'M24', stop: 'Cancel print (M0)', estop: 'M112' },
-    keep: 'Keep printing',
-  },
-  prunt: {
-    pause: 'prunt.pause',
-    resume: 'prunt.resume',
-    stop: 'prunt.cancel',
-    terms: { stop: 'Cancel file' },
-    keep: 'Keep printing',
-  },
-  g2core: {
-    pause: 'g2core.feedhold',
-    resume: 'g2core.resume',
-    stop: 'g2core.kill',
-    terms: { pause: 'Feedhold (!)', resume: 'Cycle start (~)', stop: 'Kill (^D)' },
-    keep: 'Keep cutting',
-    // The family's session type erased, as the registry does (defineController).
-    Extra: lazyView(
-      () => import('../../controllers/g2core/views/Overrides'),
-      'Overrides',
-    ) as unknown as ComponentType<TabProps<MachineSession>>,
-  },
-  // TouchCut: its REST API commands nothing; the operator uses the table's own panel.
-};
+export const KIOSK_FAMILIES: Partial<Record<MachineKind, KioskFamily>> = Object.fromEntries(
+  MANIFESTS.flatMap(({ kind, jobs, kiosk }): Array<[MachineKind, KioskFamily]> => {
+    if (!jobs || !kiosk) return [];
+    const { extra } = kiosk;
+    const row: KioskFamily = {
+      pause: jobs.pause,
+      resume: jobs.resume,
+      stop: jobs.stop,
+      ...(jobs.estop !== undefined && { estop: jobs.estop }),
+      terms: kiosk.terms,
+      keep: kiosk.keep,
+      // The family's session type erased, as the registry does (defineController).
+      ...(extra && {
+        Extra: lazyView(extra, 'KioskExtra') as unknown as ComponentType<TabProps<MachineSession>>,
+      }),
+    };
+    return [[kind, row]];
+  }),
+);

@@ -1,7 +1,7 @@
 import './wall.css';
 import { memo, useEffect, useId, useMemo, useRef, useState } from 'react';
 import { useStore } from 'zustand';
-import { FAMILY_LABELS } from '../../controllers';
+import { familyLabel } from '../../controllers';
 import { authStore } from '../../fleet/auth';
 import { linkWords } from '../../fleet/contract';
 import { fleetStore, getRuntime, type MachineRuntime } from '../../fleet/fleet';
@@ -391,7 +391,7 @@ function WallCardBody({
         </div>
       )}
       <div className="wall-sub">
-        {FAMILY_LABELS[info.kind]}
+        {familyLabel(info.kind)}
         {info.simulated && ' · simulated'}
       </div>
       {alarm ? (

@@ -2,21 +2,16 @@ import type { FamilyDeclaration } from '../../fleet/contract';
 import { duetAccess, duetAccessNeedsBody } from './access';
 import { duetHeldSession } from './gateway';
 import { duetSharing } from './sharing';
+import { duetManifest } from './manifest';
 
 /**
  * Node-safe declaration of the Duet (DSF) family: access rules and gateway hints. No React,
  * views, CSS or simulator here — the gateway and the browser import it.
  */
 export const duetDeclaration: FamilyDeclaration = {
-  kind: 'duet',
-  label: 'Duet (RepRapFirmware)',
-  jobs: {
-    start: 'duet.start',
-    pause: 'duet.pause',
-    resume: 'duet.resume',
-    stop: 'duet.cancel',
-    estop: 'duet.estop',
-  },
+  kind: duetManifest.kind,
+  label: duetManifest.label,
+  jobs: duetManifest.jobs,
   access: duetAccess,
   accessNeedsBody: duetAccessNeedsBody,
   gateway: {

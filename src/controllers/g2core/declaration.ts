@@ -1,6 +1,7 @@
 import type { FamilyDeclaration } from '../../fleet/contract';
 import { g2coreAccess, g2coreAccessBodyLimit, g2coreAccessNeedsBody } from './access';
 import { g2coreSharing } from './sharing';
+import { g2coreManifest } from './manifest';
 
 /**
  * The Node-safe declaration of the g2core family: access rules. No React, views, CSS or simulator
@@ -8,9 +9,9 @@ import { g2coreSharing } from './sharing';
  * WebSocket: the only gateway hint is how the controller is shared (`sharing.ts`).
  */
 export const g2coreDeclaration: FamilyDeclaration = {
-  kind: 'g2core',
-  label: 'g2core CNC',
-  jobs: { start: 'g2core.run-job', pause: 'g2core.feedhold', resume: 'g2core.resume', stop: 'g2core.kill' },
+  kind: g2coreManifest.kind,
+  label: g2coreManifest.label,
+  jobs: g2coreManifest.jobs,
   access: g2coreAccess,
   accessNeedsBody: g2coreAccessNeedsBody,
   accessBodyLimit: g2coreAccessBodyLimit,

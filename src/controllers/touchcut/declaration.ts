@@ -2,6 +2,7 @@ import type { FamilyDeclaration, GatewayHints } from '../../fleet/contract';
 import { takesApiKey, touchcutAccess } from './access';
 import { touchcutHeldSession } from './gateway';
 import { touchcutSharing } from './sharing';
+import { touchcutManifest } from './manifest';
 
 /**
  * Node-safe declaration of the Kinetic TouchCut family (no React, no views, no CSS, no simulator:
@@ -41,8 +42,8 @@ export const touchcutGateway: GatewayHints = {
 };
 
 export const touchcutDeclaration: FamilyDeclaration = {
-  kind: 'touchcut',
-  label: 'Kinetic TouchCut',
+  kind: touchcutManifest.kind,
+  label: touchcutManifest.label,
   access: touchcutAccess,
   gateway: touchcutGateway,
 };

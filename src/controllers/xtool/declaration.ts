@@ -1,15 +1,16 @@
 import type { FamilyDeclaration } from '../../fleet/contract';
 import { xtoolAccess } from './access';
 import { xtoolSharing } from './sharing';
+import { xtoolManifest } from './manifest';
 
 /**
  * The Node-safe declaration of the xTool D-series family: access rules, gateway hints. No React,
  * views, CSS or simulator here: the gateway and the browser import this file.
  */
 export const xtoolDeclaration: FamilyDeclaration = {
-  kind: 'xtool',
-  label: 'xTool D-series',
-  jobs: { start: 'xtool.run-file', pause: 'xtool.pause', resume: 'xtool.resume', stop: 'xtool.stop' },
+  kind: xtoolManifest.kind,
+  label: xtoolManifest.label,
+  jobs: xtoolManifest.jobs,
   access: xtoolAccess,
   gateway: {
     // The status WebSocket is on :8081 of the same host (document, "TCP Ports"); the client

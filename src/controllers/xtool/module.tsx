@@ -1,5 +1,4 @@
 import { defineController } from '../../fleet/contract';
-import { FAMILY_LABELS } from '../labels';
 import { XtoolSession } from './session';
 import { TileExtra } from './views/TileExtra';
 import { lazyView } from '../../fleet/lazy';
@@ -10,10 +9,12 @@ const Firmware = lazyView(() => import('./views/Firmware'), 'Firmware');
 const Overview = lazyView(() => import('./views/Overview'), 'Overview');
 const Safety = lazyView(() => import('./views/Safety'), 'Safety');
 
-/** The browser side of the xTool D-series family: session, tabs, fleet tile extra (its "Find lasers" page is listed in ../index.ts). */
+/** The browser side of the xTool D-series family: session, tabs, fleet tile extra (its "Find lasers" page is in its manifest). */
 export const xtoolModule = defineController<XtoolSession>({
   kind: 'xtool',
-  label: FAMILY_LABELS.xtool,
+  // The manifest's label (a test keeps them equal): importing the manifest here would split it
+  // from the shell into a chunk of its own, on every first screen.
+  label: 'xTool D-series',
   createSession: (ctx) => new XtoolSession(ctx),
   tabs: [
     { id: 'overview', label: 'Status', Component: Overview },

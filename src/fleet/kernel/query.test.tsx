@@ -92,3 +92,38 @@ describe('useMachineQuery and command invalidation', () => {
     expect(screen.getByText('a.gcode,b.gcode')).toBeTruthy();
   });
 });
+
+describe('useMachineQuery across machines', () => {
+  it("re-rendered with another machine's cache shows that machine's read, and leaves the first machine's cache alone", async () => {
+    const a = new MachineQueries('a');
+    const b = new MachineQueries('b');
+    const readA = vi.fn(async () => 'files of A');
+    const readB = vi.fn(async () => 'files of B');
+    function Files(props: { id: string; queries: MachineQueries; read: () => Promise<string> }) {
+      const q = useMachineQuery(props.queries, ['files'], props.read, { staleTimeMs: 60_000 });
+      return <p data-testid={props.id}>{q.loading ? 'loading' : (q.data ?? 'none')}</p>;
+    }
+    // Two views of A's files; the second is then shown for machine B.
+    const both = (second: { queries: MachineQueries; read: () => Promise<string> }) => (
+      <>
+        <Files id="stays" queries={a} read={readA} />
+        <Files id="moves" {...second} />
+      </>
+    );
+    const { rerender } = render(both({ queries: a, read: readA }));
+    await flush();
+    expect(screen.getByTestId('moves').textContent).toBe('files of A');
+    rerender(both({ queries: b, read: readB }));
+    await flush();
+    expect(screen.getByTestId('moves').textContent).toBe('files of B');
+    expect(readB).toHaveBeenCalledTimes(1);
+    expect(b.peek(['files'])).toBe('files of B');
+    expect(a.peek(['files'])).toBe('files of A');
+    // A's read, read again, is read with A's fetcher (B's was never written into A's cache).
+    await act(() => a.invalidate(['files']));
+    await flush();
+    expect(readA).toHaveBeenCalledTimes(2);
+    expect(readB).toHaveBeenCalledTimes(1);
+    expect(screen.getByTestId('stays').textContent).toBe('files of A');
+  });
+});

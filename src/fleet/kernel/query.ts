@@ -341,7 +341,8 @@ export class QueryWatch<T> {
   readonly refetch = (): void => void this.fetchNow(true);
 
   constructor(
-    private readonly queries: MachineQueries,
+    /** The cache of the machine watched: a watch never moves to another machine's. */
+    readonly queries: MachineQueries,
     parts: readonly unknown[],
     fn: Fetcher<T>,
     opts: QueryOptions = {},
@@ -590,7 +591,14 @@ export function useMachineQuery<T>(
   fn: Fetcher<T>,
   opts: QueryOptions = {},
 ): QueryView<T> {
-  const [watch] = useState(() => queries.watch(parts, fn, opts));
+  // One watch per machine's cache: re-rendered with another machine (the same view shown for
+  // machine B after A), a new watch of B's cache, never B's reads in A's.
+  const [held, setHeld] = useState(() => queries.watch(parts, fn, opts));
+  let watch = held;
+  if (held.queries !== queries) {
+    watch = queries.watch(parts, fn, opts);
+    setHeld(watch);
+  }
   useEffect(() => {
     watch.setOptions(parts, fn, opts);
   });

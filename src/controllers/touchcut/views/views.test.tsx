@@ -14,7 +14,7 @@ import { LoginForm } from './LoginForm';
 import { MonitorView } from './MonitorView';
 import { ScreenView } from './ScreenView';
 import { StatsView } from './StatsView';
-import { StatusView } from './StatusView';
+import { StatusView } from './Overview';
 
 let sim: TouchcutSimulator;
 let gw: GatewayStandIn;

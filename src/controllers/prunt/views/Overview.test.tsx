@@ -8,7 +8,7 @@ import { simulatorHandlers } from '../../../fleet/msw';
 import { memoryDraftStorage } from '../../../forms/storage';
 import { PruntSession } from '../session';
 import { PruntSimulator } from '../sim/sim';
-import { OverviewTab } from './OverviewTab';
+import { OverviewTab } from './Overview';
 
 const server = setupServer();
 beforeAll(() => server.listen({ onUnhandledRequest: 'error' }));
