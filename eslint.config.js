@@ -33,6 +33,21 @@ const boundaryZones = [
     ],
     message: 'a controller family never imports another family, the registries or app/',
   })),
+  // A family's server part (`<kind>/server/`) is Node-only: the gateway and the Node list of
+  // families (families.ts) load it, nothing of the page does (gateway/bundle.test.ts).
+  {
+    target: [
+      './src/app',
+      './src/fleet',
+      './src/forms',
+      './src/ui',
+      `${controllers}/!(families).{ts,tsx}`,
+      `${controllers}/*/*.{ts,tsx}`,
+      `${controllers}/*/!(server)/**`,
+    ],
+    from: `${controllers}/*/server/**`,
+    message: "a family's server/ part is Node-only: only families.ts and the gateway import it",
+  },
 ];
 
 export default tseslint.config(

@@ -40,7 +40,7 @@ export interface MachineEntry {
   group?: string;
   /**
    * A g2core/TinyG board on a USB serial port (issue 19): the gateway owns the port and serves
-   * the g2core REST design from it (gateway/g2core-serial/). `path` is a device or "auto".
+   * the g2core REST design from it (src/controllers/g2core/server/). `path` is a device or "auto".
    */
   serial?: { path: string; baudRate: number };
   /** Duet only: force the API (`dsf` or `standalone`); absent, the gateway probes (DWC's order). */
