@@ -8,7 +8,7 @@ import { startSimFleet } from '../gateway/sim-server';
  *
  * Starts every registered family's simulator as a real HTTP + WebSocket server on localhost
  * (one port per machine, a second one for the socket where the family has its own WebSocket
- * port), plus the variants of `SIM_VARIANTS` (a standalone Duet speaking `rr_*`, whose entry has
+ * port), plus each family's `simVariants` (a standalone Duet speaking `rr_*`, whose entry has
  * no `api`: the console probes it), and prints a machines file pointing at them. Run the console against them with
  * `SHOPDECK_MACHINES=machines.sim.json npm start`.
  *

@@ -12,12 +12,12 @@ import { xtoolFamily } from './xtool/family';
  * part (`<kind>/server/`: a serial bridge, routes, a history pull). Used by the gateway and
  * `npm run sim`, never by the browser (it would bring every simulator and server part into the
  * page; the page's modules spread each family's `declaration.ts`). Add a family here and in
- * `index.ts`.
+ * `index.ts`. Their order is the built-in demo fleet's (gateway/machines.ts) and `npm run sim`'s.
  */
 export const families: Record<MachineKind, NodeFamily> = {
-  touchcut: touchcutFamily,
-  g2core: { ...g2coreFamily, server: g2coreServer },
-  duet: duetFamily,
   xtool: xtoolFamily,
+  touchcut: touchcutFamily,
+  duet: duetFamily,
   prunt: pruntFamily,
+  g2core: { ...g2coreFamily, server: g2coreServer },
 };

@@ -20,6 +20,12 @@ export interface NodeFamily extends FamilyDescriptor {
    * for a board the gateway reaches over a serial port, `api` to force one of its APIs.
    */
   machineFields?: ReadonlyArray<'serial' | 'api'>;
+  /**
+   * Further simulated machines `npm run sim` starts for a family that speaks another API (a Duet
+   * without an SBC: standalone `rr_*`). Their machines-file entry has no `api`: the gateway finds
+   * out by probing, as it would for a real board.
+   */
+  simVariants?: ReadonlyArray<{ id: string; label: string; machineApi: MachineApi }>;
 }
 
 export interface FamilyServerPart {
