@@ -5,6 +5,7 @@ import { g2coreFamily } from './g2core/family';
 import { g2coreServer } from './g2core/server';
 import { pruntFamily } from './prunt/family';
 import { touchcutFamily } from './touchcut/family';
+import { touchcutServer } from './touchcut/server';
 import { xtoolFamily } from './xtool/family';
 
 /**
@@ -16,7 +17,7 @@ import { xtoolFamily } from './xtool/family';
  */
 export const families: Record<MachineKind, NodeFamily> = {
   xtool: xtoolFamily,
-  touchcut: touchcutFamily,
+  touchcut: { ...touchcutFamily, server: touchcutServer },
   duet: duetFamily,
   prunt: pruntFamily,
   g2core: { ...g2coreFamily, server: g2coreServer },

@@ -128,35 +128,38 @@ export interface FamilyRoute {
 
 // ---- History ------------------------------------------------------------------------------
 
-/** A day of statistics a family's controller keeps itself, stored by the history. */
+/** The log a server part writes to (the gateway's logger). */
+export interface PartLog {
+  info(msg: string, fields?: Record<string, unknown>): void;
+  warn(msg: string, fields?: Record<string, unknown>): void;
+  error(msg: string, fields?: Record<string, unknown>): void;
+}
+
+/** The days of statistics a controller keeps itself, as the history stores them (`touchcut_days`). */
 export interface HistoryDays {
+  readonly isClosed: boolean;
   /** Days already stored for a machine from `fromDay` on. */
   held(machine: string, fromDay: string): Set<string>;
-  save(machine: string, day: string, stats: unknown): void;
+  put(machine: string, day: string, stats: unknown, pulledAt: number): void;
 }
 
 export interface HistoryPart {
   /**
-   * Pulls what the controller keeps (TouchCut's daily statistics) into the history: started with
-   * the history, hourly by its own timer; `pullOnce` is also the API's "pull now".
+   * Pulls what the controller keeps (TouchCut's daily statistics) into the history, for the
+   * family's machines: started with the history (its own timer), stopped with it; `pullOnce` is
+   * also the history's "pull now".
    */
   statsPuller(o: {
     days: HistoryDays;
-    machines: ReadonlyArray<{ id: string }>;
-    /** The watch's read path (proxy-http.ts `watchRead`). */
+    machines: ReadonlyArray<{ id: string; name: string; kind: string }>;
+    /** The watch's read path (proxy-http.ts `watchRead`): the machine's key or held login. */
     read(
-      m: { id: string },
+      m: { id: string; name: string; kind: string },
       pathAndQuery: string,
     ): Promise<{ status: number; body: string; gateway?: boolean }>;
-    log: {
-      info(msg: string, fields?: Record<string, unknown>): void;
-      warn(msg: string, fields?: Record<string, unknown>): void;
-      error(msg: string, fields?: Record<string, unknown>): void;
-    };
+    log: PartLog;
     now: () => number;
   }): StatsPuller;
-  /** Parses a stored day's statistics for the API (null: the stored value is not valid). */
-  parseStats?(stats: unknown): unknown;
 }
 
 export interface StatsPuller {
