@@ -88,9 +88,11 @@ export default tseslint.config(
     },
   },
   // The page's zod is zod/mini (src/zod-jitless.ts): classic zod, whose methods bring every schema
-  // kind (~25 KiB gzip), stays out of src/. The gateway's own schemas (Node) may use it.
+  // kind (~25 KiB gzip), stays out of src/. The gateway's own schemas (Node) may use it, and so
+  // may a family's server part (`<kind>/server/`, Node-only, never in the page).
   {
     files: ['src/**/*.{ts,tsx}'],
+    ignores: ['src/controllers/*/server/**'],
     rules: {
       'no-restricted-imports': [
         'error',

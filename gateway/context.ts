@@ -23,13 +23,12 @@ import {
   type IdleTimeouts,
   type RateLimitOptions,
 } from './auth';
-import { type DiscoveryOptions } from './discovery';
 import { clientAddress, parseCookies, sendJson } from './http-util';
 import { loadMachines, redact, secretForms, type MachineEntry, type MachinesConfig } from './machines';
 import { UserDirectory, dataDirPath, usersFilePath } from './users';
 import type { HeldSession } from './held-session';
 import { UpstreamHttp, type UpstreamLimits, type UpstreamStats } from './upstream-http';
-import type { NodeFamily, PortOpener } from '../src/fleet/server-part';
+import type { DiscoveryOptions, NodeFamily, PortOpener } from '../src/fleet/server-part';
 
 export type Families = Partial<Record<MachineKind, NodeFamily>>;
 

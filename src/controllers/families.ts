@@ -7,6 +7,7 @@ import { pruntFamily } from './prunt/family';
 import { touchcutFamily } from './touchcut/family';
 import { touchcutServer } from './touchcut/server';
 import { xtoolFamily } from './xtool/family';
+import { xtoolServer } from './xtool/server';
 
 /**
  * Node-safe list of families: access rules, gateway hints, simulators, and each family's server
@@ -16,7 +17,7 @@ import { xtoolFamily } from './xtool/family';
  * `index.ts`. Their order is the built-in demo fleet's (gateway/machines.ts) and `npm run sim`'s.
  */
 export const families: Record<MachineKind, NodeFamily> = {
-  xtool: xtoolFamily,
+  xtool: { ...xtoolFamily, server: xtoolServer },
   touchcut: { ...touchcutFamily, server: touchcutServer },
   duet: duetFamily,
   prunt: pruntFamily,
