@@ -58,6 +58,8 @@ async function setup(o: { brokenFile?: boolean } = {}) {
           return d.id ? { ...d, id: d.id.replace(/^test\./, 'xtool.') } : d;
         },
       },
+      // Its stored days' route (`/api/history/touchcut-stats`) is the TouchCut server part's.
+      touchcut: families.touchcut,
     },
     dataDir: t.dir,
     usersFile,

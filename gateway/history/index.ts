@@ -76,7 +76,11 @@ export function createHistory(o: HistoryOptions): History {
       error: problem,
     });
   }
-  const reads = store ? new HistoryReads(file, o.log) : null;
+  const statsExports = Object.values(o.families).flatMap((f) => {
+    const x = f?.server?.history?.statsExport;
+    return x ? [x] : [];
+  });
+  const reads = store ? new HistoryReads(file, o.log, statsExports) : null;
   const byId = new Map(o.machines.map((m) => [m.id, m]));
   const timers: Array<ReturnType<typeof setInterval>> = [];
   const pullers: StatsPuller[] = [];

@@ -160,6 +160,20 @@ export interface HistoryPart {
     log: PartLog;
     now: () => number;
   }): StatsPuller;
+  /**
+   * The API's answer for the stored days (`GET /api/history/<route>`, `.csv`): `module` is the URL
+   * of a file exporting `statsExport: StatsExport`, which the history's read workers load (the
+   * answers are computed off the gateway's thread, where no function can be passed).
+   */
+  statsExport?: { route: string; module: string };
+}
+
+/** How a family's stored days of statistics are exported: the CSV columns they give a day. */
+export interface StatsExport {
+  /** Columns between `day` and `pulled` (`sessions`, `active_s`, …). */
+  columns: readonly string[];
+  /** Those columns of one stored day (null where the stored value says nothing). */
+  row(stats: unknown): ReadonlyArray<string | number | null>;
 }
 
 export interface StatsPuller {

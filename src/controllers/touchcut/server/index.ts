@@ -8,5 +8,6 @@ import { TouchcutStatsPuller } from './stats-pull';
 export const touchcutServer: FamilyServerPart = {
   history: {
     statsPuller: (o) => new TouchcutStatsPuller(o),
+    statsExport: { route: 'touchcut-stats', module: new URL('./stats-export.ts', import.meta.url).href },
   },
 };
