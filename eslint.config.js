@@ -37,6 +37,21 @@ const boundaryZones = [
     ],
     message: 'a controller family never imports another family, the registries or app/',
   })),
+  // A family's server part (`<kind>/server/`) is Node-only: the gateway and the Node list of
+  // families (families.ts) load it, nothing of the page does (gateway/bundle.test.ts).
+  {
+    target: [
+      './src/app',
+      './src/fleet',
+      './src/forms',
+      './src/ui',
+      `${controllers}/!(families).{ts,tsx}`,
+      `${controllers}/*/*.{ts,tsx}`,
+      `${controllers}/*/!(server)/**`,
+    ],
+    from: `${controllers}/*/server/**`,
+    message: "a family's server/ part is Node-only: only families.ts and the gateway import it",
+  },
 ];
 
 export default tseslint.config(
@@ -77,9 +92,11 @@ export default tseslint.config(
     },
   },
   // The page's zod is zod/mini (src/zod-jitless.ts): classic zod, whose methods bring every schema
-  // kind (~25 KiB gzip), stays out of src/. The gateway's own schemas (Node) may use it.
+  // kind (~25 KiB gzip), stays out of src/. The gateway's own schemas (Node) may use it, and so
+  // may a family's server part (`<kind>/server/`, Node-only, never in the page).
   {
     files: ['src/**/*.{ts,tsx}'],
+    ignores: ['src/controllers/*/server/**'],
     rules: {
       'no-restricted-imports': [
         'error',

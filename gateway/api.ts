@@ -4,7 +4,6 @@ import { z } from 'zod';
 import { mostSevereAlarm, roleAtLeast, type ServerWatch } from '../src/fleet/types';
 import { auditQueryFrom, streamCsv } from './audit';
 import { LoginHistory, SESSION_COOKIE, type LimitKey } from './auth';
-import { discoverXtool } from './discovery';
 import { clientAddress, parseCookies, readJson, sendJson } from './http-util';
 import type { WatchJobRecord, WatchSummary } from '../src/fleet/contract';
 import { machineInfo } from './machines';
@@ -12,7 +11,6 @@ import { LOGOUT_CLEAR_SITE_DATA } from './page-headers';
 import { createSimApi, SIM_API_PATH } from './sim-api';
 import { PIN_RULE, checkSecret } from './users';
 import type { GatewayContext, Principal, Who } from './context';
-import { envNumber } from './context';
 import { type AlarmCentre, createAlarmStores, webhookPayload } from './alarms';
 import type { SettingsStore } from './settings';
 import type { Webhook } from './webhook';
@@ -496,31 +494,6 @@ export function createApi(ctx: GatewayContext, stores: ApiStores = createAlarmSt
         }
         return;
       }
-      case 'GET /api/discover/xtool': {
-        const w = who(req, false);
-        if (!w.principal) {
-          needLogin(res, w);
-          return;
-        }
-        if (!roleAtLeast(w.principal.role, 'supervisor')) {
-          sendJson(res, 403, {
-            error: 'finding lasers on the network is for supervisors',
-            needs: 'supervisor',
-          });
-          return;
-        }
-        const d = opts.discovery ?? {};
-        const result = await discoverXtool({
-          broadcast: d.broadcast ?? env.SHOPDECK_DISCOVERY_BROADCAST ?? '255.255.255.255',
-          udpPort: d.udpPort ?? envNumber(env, 'SHOPDECK_DISCOVERY_UDP_PORT') ?? 20000,
-          tcpPort: d.tcpPort ?? envNumber(env, 'SHOPDECK_DISCOVERY_TCP_PORT') ?? 20001,
-          listenUdpPort: d.listenUdpPort,
-          listenMs: d.listenMs ?? 2000,
-          bindAddress: d.bindAddress,
-        });
-        sendJson(res, 200, result);
-        return;
-      }
       case 'GET /api/alarms': {
         const w = who(req, false);
         if (!w.principal) {
@@ -752,6 +725,28 @@ export function createApi(ctx: GatewayContext, stores: ApiStores = createAlarmSt
             detail: `forgot the pinned certificate ${gone?.fingerprint ?? ''}: the next connection trusts what it is shown`,
           });
           sendJson(res, 200, { forgotten: gone });
+          return;
+        }
+        // A family's own routes (its server part's `routes`): `GET /api/<name>/<kind>`.
+        const own = /^\/api\/([a-z0-9-]{1,40})\/([a-z0-9-]{1,40})$/.exec(url.pathname);
+        const famRoute =
+          method === 'GET' && own
+            ? Object.values(opts.families)
+                .find((f) => f?.kind === own[2])
+                ?.server?.routes?.find((r) => r.name === own[1])
+            : undefined;
+        if (famRoute) {
+          const w = who(req, false);
+          if (!w.principal) {
+            needLogin(res, w);
+            return;
+          }
+          if (!roleAtLeast(w.principal.role, famRoute.role)) {
+            sendJson(res, 403, { error: famRoute.forbidden, needs: famRoute.role });
+            return;
+          }
+          const answer = await famRoute.handle({ env, discovery: opts.discovery ?? {} });
+          sendJson(res, answer.status, answer.body);
           return;
         }
         sendJson(res, 404, { error: `no such endpoint: ${method} ${url.pathname}` });

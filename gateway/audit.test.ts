@@ -9,7 +9,8 @@ import { touchcutAccess } from '../src/controllers/touchcut/access';
 import { xtoolAccess } from '../src/controllers/xtool/access';
 import { xtoolFamily } from '../src/controllers/xtool/family';
 import type { AccessPolicy } from '../src/fleet/access';
-import { JOB_COMMANDS } from './history/store';
+import { families } from '../src/controllers/families';
+import { jobCommandsOf } from './history/store';
 import type { WatchSummary } from '../src/fleet/contract';
 import { AUDIT_DB_FILE, AuditLog, type AuditEntry, type AuditQuery } from './audit';
 import { createLogger, type Logger } from './log';
@@ -394,7 +395,8 @@ describe('the command a request is, as the families classify it (the audit’s c
       [ask(g2coreAccess, 'PUT', '/job/3', '{"position":2}'), undefined],
     ];
     for (const [got, want] of cases) expect(got).toBe(want);
-    for (const [got] of cases) if (got && got !== 'duet.simulate') expect(JOB_COMMANDS[got]).toBeDefined();
+    for (const [got] of cases)
+      if (got && got !== 'duet.simulate') expect(jobCommandsOf(families)[got]).toBeDefined();
     // The same class of mistake (a name looked up among an object's inherited keys) is closed:
     // an action or resource called `constructor` is unknown, so supervisor only.
     const role = (policy: AccessPolicy, target: string) =>

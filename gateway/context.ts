@@ -5,7 +5,7 @@ import http, { type IncomingMessage, type ServerResponse } from 'node:http';
 import { isIP } from 'node:net';
 import { WebSocket } from 'ws';
 import { defaultDecision, type AccessDecision, type AccessRequest } from '../src/fleet/access';
-import type { FamilyDescriptor, HeldSessionHooks, SharingHints } from '../src/fleet/contract';
+import type { HeldSessionHooks, SharingHints } from '../src/fleet/contract';
 import { FaultySimulator } from '../src/fleet/sim';
 import { roleAtLeast, type MachineKind, type Role } from '../src/fleet/types';
 import { AuditLog, type AuditEntry, type AuditLogOptions } from './audit';
@@ -22,17 +22,14 @@ import {
   type IdleTimeouts,
   type RateLimitOptions,
 } from './auth';
-import { type DiscoveryOptions } from './discovery';
 import { clientAddress, parseCookies, sendJson } from './http-util';
 import { loadMachines, redact, secretForms, type MachineEntry, type MachinesConfig } from './machines';
 import { UserDirectory, dataDirPath, usersFilePath } from './users';
 import type { HeldSession } from './held-session';
 import { UpstreamHttp, type UpstreamLimits, type UpstreamStats } from './upstream-http';
-import { G2coreSerialBridge } from './g2core-serial/bridge';
-import type { PortOpener } from './g2core-serial/link';
-import { nativeOpener } from './g2core-serial/ports';
+import type { DiscoveryOptions, NodeFamily, PortOpener } from '../src/fleet/server-part';
 
-export type Families = Partial<Record<MachineKind, FamilyDescriptor>>;
+export type Families = Partial<Record<MachineKind, NodeFamily>>;
 
 export interface GatewayOptions {
   /** How serial machines' ports are opened (tests: the serialport mock binding). Default: the real ports. */
@@ -595,27 +592,28 @@ export function createContext(opts: GatewayOptions): GatewayContext {
     return { ok: true, principal: p };
   }
 
-  let serialOpener: PortOpener | null = opts.serialOpener ?? null;
   const watchdogS = envNumber(env, 'SHOPDECK_SERIAL_WATCHDOG_S');
   // At least 1 s: a shorter watchdog would call every pause between two reports a stuck board.
   const serialWatchdogMs = opts.serialWatchdogMs ?? Math.max(1, watchdogS ?? 10) * 1000;
 
   /**
-   * A g2core board on a serial port (issue 19): the gateway's bridge answers the REST design from
-   * it, in place of a simulator (never simulated: no faults can be injected, the dev panel is off).
+   * A board on a serial port (issue 19): its family's server part (`serial`) answers the family's
+   * API from it, in place of a simulator (never simulated: no faults can be injected, the dev
+   * panel is off). Null when the family drives no serial board (the machines file refuses that).
    */
-  function serialBridge(m: MachineEntry & { serial: { path: string; baudRate: number } }): FaultySimulator {
-    serialOpener ??= nativeOpener();
-    const bridge = new G2coreSerialBridge({
+  function serialBridge(
+    m: MachineEntry & { serial: { path: string; baudRate: number } },
+  ): FaultySimulator | null {
+    const part = opts.families[m.kind]?.server?.serial;
+    if (!part) return null;
+    const bridge = part.open({
       id: m.id,
       name: m.name,
-      serial: m.serial.path,
+      path: m.serial.path,
       baudRate: m.serial.baudRate,
-      opener: serialOpener,
+      ...(opts.serialOpener ? { opener: opts.serialOpener } : {}),
       watchdogMs: serialWatchdogMs,
-      events: {
-        event: (level, message) => log[level](`${m.id}: ${message}`, { machine: m.id }),
-      },
+      event: (level, message) => log[level](`${m.id}: ${message}`, { machine: m.id }),
     });
     return new FaultySimulator(bridge);
   }
@@ -625,9 +623,9 @@ export function createContext(opts: GatewayOptions): GatewayContext {
     if (sim) return sim;
     if (m.serial) {
       if (state.closed) return null;
-      sim = serialBridge({ ...m, serial: m.serial });
-      sims.set(m.id, sim);
-      return sim;
+      sim = serialBridge({ ...m, serial: m.serial }) ?? undefined;
+      if (sim) sims.set(m.id, sim);
+      return sim ?? null;
     }
     const fam = opts.families[m.kind];
     if (!fam) return null;

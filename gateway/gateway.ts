@@ -103,6 +103,7 @@ export function createGateway(opts: GatewayOptions): Gateway {
     scrub,
     machines: config.machines,
     settings: stores.settings,
+    families: ctx.opts.families,
     read: watchRead,
   });
   const stopHistoryFeed = ctx.onRecord((e) => history.recorded(e));

@@ -3,6 +3,7 @@ import path from 'node:path';
 import { z } from 'zod';
 import { families } from '../src/controllers/families';
 import type { GatewaySecrets } from '../src/fleet/contract';
+import { kindsAccepting } from '../src/fleet/server-part';
 import {
   MACHINE_APIS,
   MACHINE_ID,
@@ -39,11 +40,12 @@ export interface MachineEntry {
   /** Where the machine stands (a bay, a room): the fleet page groups by it. */
   group?: string;
   /**
-   * A g2core/TinyG board on a USB serial port (issue 19): the gateway owns the port and serves
-   * the g2core REST design from it (gateway/g2core-serial/). `path` is a device or "auto".
+   * A board on a USB serial port (issue 19; a family whose `machineFields` has `serial`): the
+   * gateway owns the port and its family's server part serves the family's API from it
+   * (`server.serial`, src/fleet/server-part.ts). `path` is a device or "auto".
    */
   serial?: { path: string; baudRate: number };
-  /** Duet only: force the API (`dsf` or `standalone`); absent, the gateway probes (DWC's order). */
+  /** Families that speak more than one API (their `machineFields` has `api`): force the API (`dsf` or `standalone`); absent, the gateway probes (DWC's order). */
   api?: MachineApi;
 }
 
@@ -63,14 +65,11 @@ export class MachinesFileError extends Error {
   }
 }
 
-export const DEMO_FLEET: ReadonlyArray<{ id: string; name: string; kind: MachineKind; api?: MachineApi }> = [
-  { id: 'demo-xtool', name: 'Laser bay — xTool D1 Pro', kind: 'xtool' },
-  { id: 'demo-touchcut', name: 'Plasma table — TouchCut', kind: 'touchcut' },
-  { id: 'demo-duet', name: 'Printer bay — Duet 3', kind: 'duet' },
-  { id: 'demo-duet-standalone', name: 'Printer bay — Duet 2 (standalone)', kind: 'duet', api: 'standalone' },
-  { id: 'demo-prunt', name: 'Printer bay — Prunt', kind: 'prunt' },
-  { id: 'demo-g2core', name: 'CNC router — g2core', kind: 'g2core' },
-];
+/** The built-in demo fleet: each family's `demo` machines (src/controllers/<kind>/family.ts). */
+export const DEMO_FLEET: ReadonlyArray<{ id: string; name: string; kind: MachineKind; api?: MachineApi }> =
+  Object.values(families).flatMap((f) =>
+    (f.demo ?? []).map((d) => ({ id: d.id, name: d.name, kind: f.kind, ...(d.api ? { api: d.api } : {}) })),
+  );
 
 /** Control and format characters, line and paragraph separators: not printable in a group name. */
 const UNPRINTABLE = /[\p{Cc}\p{Cf}\p{Zl}\p{Zp}]/u;
@@ -161,8 +160,17 @@ function resolveSecret(
   return v;
 }
 
-/** Kinds whose boards the gateway can drive over a serial port. */
-const SERIAL_KINDS: ReadonlySet<MachineKind> = new Set(['g2core']);
+/** Kinds whose boards the gateway can drive over a serial port (their family's `machineFields`). */
+const SERIAL_KINDS: ReadonlySet<MachineKind> = new Set(kindsAccepting(families, 'serial'));
+/** Kinds whose API the machines file may force (`api`). */
+const API_KINDS: ReadonlySet<MachineKind> = new Set(kindsAccepting(families, 'api'));
+
+/** "a" · "a or b" · "a, b or c". */
+function either(words: readonly string[]): string {
+  return words.length < 2
+    ? (words[0] ?? '')
+    : `${words.slice(0, -1).join(', ')} or ${words[words.length - 1]}`;
+}
 export const DEFAULT_BAUD_RATE = 115_200;
 
 /** A device path: /dev/…, COM<n>, \\.\COM<n>, or "auto". */
@@ -181,7 +189,9 @@ function serialOf(
   }
   const before = problems.length;
   if (!SERIAL_KINDS.has(e.kind))
-    problems.push(`${where}: field "serial": only g2core boards can be reached over a serial port`);
+    problems.push(
+      `${where}: field "serial": only ${either([...SERIAL_KINDS])} boards can be reached over a serial port`,
+    );
   else if (simulated)
     problems.push(
       `${where}: field "serial": a simulated machine has no port (remove "serial" or "simulated")`,
@@ -239,7 +249,7 @@ export function parseMachines(file: string, data: unknown, env: NodeJS.ProcessEn
     if (e.url === undefined) {
       if (!simulated && e.serial === undefined)
         problems.push(
-          `${where}: field "url": missing (required unless "simulated": true${e.kind === 'g2core' ? ', or "serial" for a board on USB' : ''})`,
+          `${where}: field "url": missing (required unless "simulated": true${SERIAL_KINDS.has(e.kind) ? ', or "serial" for a board on USB' : ''})`,
         );
     } else if (e.serial !== undefined) {
       problems.push(`${where}: field "serial": use either "url" or "serial", not both`);
@@ -273,8 +283,10 @@ export function parseMachines(file: string, data: unknown, env: NodeJS.ProcessEn
         tlsFingerprint = fp;
       }
     }
-    if (e.api !== undefined && e.kind !== 'duet')
-      problems.push(`${where}: field "api": only for "kind": "duet" (dsf or standalone)`);
+    if (e.api !== undefined && !API_KINDS.has(e.kind))
+      problems.push(
+        `${where}: field "api": only for ${either([...API_KINDS].map((k) => `"kind": "${k}"`))} (${either(MACHINE_APIS)})`,
+      );
     const secrets: GatewaySecrets = {};
     for (const field of ['apiKey', 'password'] as const) {
       const v = resolveSecret(e[field], env);

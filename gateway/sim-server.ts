@@ -3,6 +3,7 @@ import type { AddressInfo } from 'node:net';
 import type { Duplex } from 'node:stream';
 import { WebSocket, WebSocketServer, type RawData } from 'ws';
 import type { FamilyDescriptor } from '../src/fleet/contract';
+import type { NodeFamily } from '../src/fleet/server-part';
 import { FaultySimulator, SimDropped, type Faults, type Simulator } from '../src/fleet/sim';
 import type { MachineApi, MachineKind } from '../src/fleet/types';
 import { readBody, sendJson } from './http-util';
@@ -271,28 +272,9 @@ export interface SimFleet {
   close(): Promise<void>;
 }
 
-/**
- * Further simulated machines of a family that speaks another API: a Duet WITHOUT an SBC
- * (standalone RepRapFirmware, `rr_*`). Its machines-file entry has no `api`: the gateway finds out
- * by probing, as it would for a real board.
- */
-export const SIM_VARIANTS: ReadonlyArray<{
-  kind: MachineKind;
-  id: string;
-  label: string;
-  machineApi: MachineApi;
-}> = [
-  {
-    kind: 'duet',
-    id: 'sim-duet-standalone',
-    label: 'Duet (standalone RepRapFirmware, rr_*)',
-    machineApi: 'standalone',
-  },
-];
-
-/** One simulated machine per registered family, and its SIM_VARIANTS (`npm run sim`). */
+/** One simulated machine per registered family, and its `simVariants` (`npm run sim`). */
 export async function startSimFleet(
-  families: Partial<Record<MachineKind, FamilyDescriptor>>,
+  families: Partial<Record<MachineKind, NodeFamily>>,
   opts: { host?: string; basePort?: number; tickMs?: number } = {},
 ): Promise<SimFleet> {
   const servers: SimServer[] = [];
@@ -302,9 +284,8 @@ export async function startSimFleet(
     for (const fam of Object.values(families)) {
       if (!fam) continue;
       list.push({ fam, id: `sim-${fam.kind}`, name: `Simulated ${fam.label}` });
-      for (const v of SIM_VARIANTS)
-        if (v.kind === fam.kind)
-          list.push({ fam, id: v.id, name: `Simulated ${v.label}`, machineApi: v.machineApi });
+      for (const v of fam.simVariants ?? [])
+        list.push({ fam, id: v.id, name: `Simulated ${v.label}`, machineApi: v.machineApi });
     }
     for (const { fam, id, name, machineApi } of list) {
       const port = next;

@@ -1,4 +1,4 @@
-import { statsSchema } from '../../src/controllers/touchcut/wire';
+import type { StatsExport } from '../../src/fleet/server-part';
 import type { CsvValue } from '../../src/ui/csv';
 import type { Retention, Shift } from '../settings';
 import type { HistoryReader } from './reader';
@@ -74,9 +74,11 @@ export function answerHistory(
   p: URLSearchParams,
   env: AnswerEnv,
   store: HistoryReader,
+  /** The families' exports of their stored days, by route (`history.statsExport`). */
+  statsExports: ReadonlyMap<string, StatsExport> = new Map(),
 ): HistoryAnswer {
   try {
-    return answer(route, csv, p, env, store);
+    return answer(route, csv, p, env, store, statsExports);
   } catch (e) {
     if (e instanceof BadRequest) return { type: 'json', status: 400, body: { error: e.message } };
     if (e instanceof NotFound) return { type: 'json', status: 404, body: { error: e.message } };
@@ -90,6 +92,7 @@ function answer(
   p: URLSearchParams,
   env: AnswerEnv,
   store: HistoryReader,
+  statsExports: ReadonlyMap<string, StatsExport>,
 ): HistoryAnswer {
   const byId = new Map(env.machines.map((m) => [m.id, m]));
   const ctx = { now: () => env.now };
@@ -385,7 +388,21 @@ function answer(
           ]),
         );
       }
-      case 'touchcut-stats': {
+      case 'info': {
+        if (csv) throw new NotFound('no CSV of the info');
+        const i = store.info();
+        return json({
+          sizeBytes: i.sizeBytes,
+          schemaVersion: i.schemaVersion,
+          oldest: { jobAt: i.oldest.job, stateAt: i.oldest.state, touchcutDay: i.oldest.touchcutDay },
+          counts: i.counts,
+          ...historySettings(),
+        });
+      }
+      default: {
+        // A family's stored days of statistics (its server part's `history.statsExport`).
+        const sx = statsExports.get(route);
+        if (!sx) throw new NotFound(`no such endpoint: GET /api/history/${route}`);
         const from = p.get('from') || undefined;
         const to = p.get('to') || undefined;
         for (const [k, v] of [
@@ -400,64 +417,11 @@ function answer(
           return json({ days });
         }
         return csvOut(
-          'touchcut-stats',
-          [
-            'machine',
-            'machine_name',
-            'day',
-            'sessions',
-            'active_s',
-            'productive_s',
-            'unproductive_s',
-            'error_s',
-            'idle_s',
-            'tool_on_s',
-            'programs',
-            'errors',
-            'pulled',
-          ],
-          days.map((d) => {
-            const s = statsSchema.safeParse(d.stats);
-            const sum = (
-              k:
-                | 'activeTime'
-                | 'productiveTime'
-                | 'unproductiveTime'
-                | 'errorTime'
-                | 'idleTime'
-                | 'toolOnTime',
-            ) => (s.success ? s.data.sessions.reduce((a, x) => a + (x[k] ?? 0), 0) : null);
-            return [
-              d.machine,
-              d.machineName,
-              d.day,
-              s.success ? s.data.sessions.length : null,
-              sum('activeTime'),
-              sum('productiveTime'),
-              sum('unproductiveTime'),
-              sum('errorTime'),
-              sum('idleTime'),
-              sum('toolOnTime'),
-              s.success ? s.data.programs.length : null,
-              s.success ? s.data.errors.length : null,
-              iso(d.pulledAt),
-            ];
-          }),
+          route,
+          ['machine', 'machine_name', 'day', ...sx.columns, 'pulled'],
+          days.map((d) => [d.machine, d.machineName, d.day, ...sx.row(d.stats), iso(d.pulledAt)]),
         );
       }
-      case 'info': {
-        if (csv) throw new NotFound('no CSV of the info');
-        const i = store.info();
-        return json({
-          sizeBytes: i.sizeBytes,
-          schemaVersion: i.schemaVersion,
-          oldest: { jobAt: i.oldest.job, stateAt: i.oldest.state, touchcutDay: i.oldest.touchcutDay },
-          counts: i.counts,
-          ...historySettings(),
-        });
-      }
-      default:
-        throw new NotFound(`no such endpoint: GET /api/history/${route}`);
     }
   };
 

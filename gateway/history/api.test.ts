@@ -14,6 +14,7 @@ import {
   writeJson,
 } from '../test-util';
 import { S } from './summary.test-util';
+import { families } from '../../src/controllers/families';
 
 /** `/api/history/*` through the real gateway: who sees what, CSV safety, settings, a missing store. */
 
@@ -51,11 +52,14 @@ async function setup(o: { brokenFile?: boolean } = {}) {
     families: {
       xtool: {
         ...testFamily('xtool'),
+        jobs: families.xtool.jobs,
         access: (r) => {
           const d = testAccess(r);
           return d.id ? { ...d, id: d.id.replace(/^test\./, 'xtool.') } : d;
         },
       },
+      // Its stored days' route (`/api/history/touchcut-stats`) is the TouchCut server part's.
+      touchcut: families.touchcut,
     },
     dataDir: t.dir,
     usersFile,

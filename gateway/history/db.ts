@@ -75,7 +75,7 @@ export const MIGRATIONS: readonly Migration[] = [
     `,
   },
   {
-    name: 'TouchCut daily statistics',
+    name: 'daily statistics kept by the controllers (touchcut_days)',
     sql: `
       CREATE TABLE touchcut_days (
         machine TEXT NOT NULL,

@@ -5,13 +5,15 @@ import type { Logger } from '../log';
 import type { MachineEntry } from '../machines';
 import type { Retention, SettingsStore, Shift } from '../settings';
 import { HistoryReads } from './reads';
-import { HEARTBEAT_MS, HistoryStore } from './store';
-import { TouchcutStatsPuller } from './touchcut-stats';
+import type { Families } from '../context';
+import type { StatsPuller } from '../../src/fleet/server-part';
+import { HEARTBEAT_MS, HistoryStore, jobCommandsOf } from './store';
 
 /**
  * The production history as the gateway runs it: the store (store.ts) in `<data>/history.sqlite`,
  * fed by the watch (`observe`) and by the audit records of commands (`command`), a heartbeat for
- * the last-seen times, pruning at start and daily, and TouchCut's daily statistics. If the file
+ * the last-seen times, pruning at start and daily, and what the families' server parts pull in
+ * (`server.history`: TouchCut's daily statistics). If the file
  * cannot be opened the console still runs: the history API answers 503 with `problem`.
  */
 
@@ -31,7 +33,7 @@ export interface History {
   prune(): void;
   /** The shifts and the retention in force (the server settings). */
   settings(): { shifts: Shift[]; retention: Retention };
-  /** Pulls TouchCut's missing daily statistics now (the timer does it hourly). */
+  /** Pulls the controllers' missing daily statistics now (the families' pullers; their timers do it hourly). */
   pullStats(): Promise<{ stored: number; failed: number }>;
   close(): void;
 }
@@ -44,7 +46,9 @@ export interface HistoryOptions {
   settings: SettingsStore;
   /** Alarm texts and job names may echo a machine's secret. */
   scrub: (text: string) => string;
-  /** The watch's read path (proxy-http.ts `watchRead`): TouchCut's statistics. */
+  /** The families: their job commands (`jobs`) and history parts (`server.history`). */
+  families: Families;
+  /** The watch's read path (proxy-http.ts `watchRead`): the controllers' statistics. */
   read: (
     m: MachineEntry,
     pathAndQuery: string,
@@ -58,7 +62,13 @@ export function createHistory(o: HistoryOptions): History {
   let problem: string | null = null;
   const file = join(o.dataDir, HISTORY_FILE);
   try {
-    store = new HistoryStore({ file, log: o.log, now: o.now, retention: () => o.settings.retention() });
+    store = new HistoryStore({
+      file,
+      log: o.log,
+      now: o.now,
+      retention: () => o.settings.retention(),
+      jobCommands: jobCommandsOf(o.families),
+    });
   } catch (e) {
     problem = e instanceof Error ? e.message : String(e);
     o.log.error('the production history cannot be opened: the console runs without it', {
@@ -66,10 +76,14 @@ export function createHistory(o: HistoryOptions): History {
       error: problem,
     });
   }
-  const reads = store ? new HistoryReads(file, o.log) : null;
+  const statsExports = Object.values(o.families).flatMap((f) => {
+    const x = f?.server?.history?.statsExport;
+    return x ? [x] : [];
+  });
+  const reads = store ? new HistoryReads(file, o.log, statsExports) : null;
   const byId = new Map(o.machines.map((m) => [m.id, m]));
   const timers: Array<ReturnType<typeof setInterval>> = [];
-  let puller: TouchcutStatsPuller | null = null;
+  const pullers: StatsPuller[] = [];
 
   const pruneFailed = (e: unknown): void => {
     o.log.error('the production history could not be pruned', { error: String(e) });
@@ -107,24 +121,30 @@ export function createHistory(o: HistoryOptions): History {
   if (store) {
     const s = store;
     pruneNow();
-    puller = new TouchcutStatsPuller({
-      store: s,
-      machines: o.machines.filter((m) => m.kind === 'touchcut'),
-      read: (m, p) => {
-        const entry = byId.get(m.id);
-        if (!entry) return Promise.reject(new Error(`no machine ${m.id}`));
-        return o.read(entry, p);
-      },
-      log: o.log,
-      now: o.now,
-    });
+    for (const fam of Object.values(o.families)) {
+      const part = fam?.server?.history;
+      if (!part) continue;
+      pullers.push(
+        part.statsPuller({
+          days: s.statsDays(),
+          machines: o.machines.filter((m) => m.kind === fam.kind),
+          read: (m, p) => {
+            const entry = byId.get(m.id);
+            if (!entry) return Promise.reject(new Error(`no machine ${m.id}`));
+            return o.read(entry, p);
+          },
+          log: o.log,
+          now: o.now,
+        }),
+      );
+    }
     if (o.timers !== false) {
       timers.push(
         setInterval(() => s.heartbeat(), HEARTBEAT_MS),
         setInterval(prune, DAY_MS),
       );
       for (const t of timers) t.unref();
-      puller.start();
+      for (const p of pullers) p.start();
     }
   }
 
@@ -146,10 +166,19 @@ export function createHistory(o: HistoryOptions): History {
     },
     prune,
     settings: () => ({ shifts: o.settings.shifts(), retention: o.settings.retention() }),
-    pullStats: () => puller?.pullOnce() ?? Promise.resolve({ stored: 0, failed: 0 }),
+    pullStats: async () => {
+      let stored = 0;
+      let failed = 0;
+      for (const p of pullers) {
+        const r = await p.pullOnce();
+        stored += r.stored;
+        failed += r.failed;
+      }
+      return { stored, failed };
+    },
     close() {
       for (const t of timers) clearInterval(t);
-      puller?.stop();
+      for (const p of pullers) p.stop();
       reads?.close();
       try {
         store?.close();

@@ -1,8 +1,12 @@
 import { afterEach, describe, expect, it } from 'vitest';
 import type { WatchSummary } from '../../src/fleet/contract';
 import type { MachineEntry } from '../machines';
-import { consoleFetch, startGateway, tempDir, testFamily } from '../test-util';
+import { families } from '../../src/controllers/families';
+import { consoleFetch, startGateway, tempDir, testFamily as bareTestFamily } from '../test-util';
 import { S } from './summary.test-util';
+
+/** A test family of `kind` with that family's job commands (the history reads them from the families). */
+const testFamily = (kind: MachineEntry['kind']) => ({ ...bareTestFamily(kind), jobs: families[kind].jobs });
 
 /**
  * A simulated night through the real gateway on a fake clock: three machines run, pause, raise

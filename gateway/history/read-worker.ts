@@ -1,6 +1,7 @@
-import { parentPort } from 'node:worker_threads';
+import { parentPort, workerData } from 'node:worker_threads';
 import Database from 'better-sqlite3';
 import { csvRow, UTF8_BOM } from '../../src/ui/csv';
+import type { StatsExport } from '../../src/fleet/server-part';
 import { answerHistory } from './answers';
 import { CHUNK_CHARS, CREDIT_WINDOW, type FromWorker, type ReadJob, type ToWorker } from './read-protocol';
 import { HistoryReader } from './reader';
@@ -15,6 +16,14 @@ import { HistoryReader } from './reader';
 
 const port = parentPort;
 if (!port) throw new Error('read-worker.ts runs as a worker thread');
+
+/** The families' exports of their stored days (reads.ts passes their modules), loaded before any question. */
+const statsExports = new Map<string, StatsExport>();
+for (const e of (workerData as { statsExports?: Array<{ route: string; module: string }> } | null)
+  ?.statsExports ?? []) {
+  const m = (await import(e.module)) as { statsExport: StatsExport };
+  statsExports.set(e.route, m.statsExport);
+}
 
 interface Running {
   cancelled: boolean;
@@ -45,7 +54,14 @@ async function run(id: number, file: string, job: ReadJob): Promise<void> {
       retention: () => job.env.settings.retention,
       live: (m) => job.live[m],
     });
-    const a = answerHistory(job.route, job.csv, new URLSearchParams(job.params), job.env, reader);
+    const a = answerHistory(
+      job.route,
+      job.csv,
+      new URLSearchParams(job.params),
+      job.env,
+      reader,
+      statsExports,
+    );
     if (a.type === 'json') {
       post({ type: 'json', id, status: a.status, text: JSON.stringify(a.body) });
       return;

@@ -65,6 +65,8 @@ export class HistoryReads {
   constructor(
     private readonly file: string,
     private readonly log: Logger,
+    /** The families' exports of their stored days (route, module URL): each worker loads them. */
+    private readonly statsExports: ReadonlyArray<{ route: string; module: string }> = [],
   ) {}
 
   stats(): ReadStats {
@@ -172,7 +174,9 @@ export class HistoryReads {
   }
 
   private spawn(): PoolWorker {
-    const worker = new Worker(new URL('./read-worker.mjs', import.meta.url));
+    const worker = new Worker(new URL('./read-worker.mjs', import.meta.url), {
+      workerData: { statsExports: this.statsExports },
+    });
     worker.unref();
     const w: PoolWorker = { worker, tasks: new Map() };
     this.workers.push(w);

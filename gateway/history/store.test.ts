@@ -7,7 +7,8 @@ import type { WatchSummary } from '../../src/fleet/contract';
 import { createLogger, type Logger } from '../log';
 import { tempDir } from '../test-util';
 import { MIGRATIONS, NewerSchemaError, openHistoryDb, schemaVersion } from './db';
-import { HistoryStore, type HistoryMachine } from './store';
+import { families } from '../../src/controllers/families';
+import { HistoryStore, jobCommandsOf, type HistoryMachine } from './store';
 import { S } from './summary.test-util';
 
 /** The history store against a real SQLite file in a temporary folder, on an injected clock. */
@@ -29,6 +30,7 @@ function setup(start = Date.UTC(2026, 2, 10, 12)) {
       file,
       log,
       now: () => clock.now,
+      jobCommands: jobCommandsOf(families),
       ...(o.retention ? { retention: () => o.retention ?? { jobsDays: 365, statesDays: 90 } } : {}),
     });
     cleanups.push(() => {
@@ -58,6 +60,30 @@ function feed(
 
 const tables = (db: Database.Database): string[] =>
   db.prepare("SELECT name FROM sqlite_master WHERE type = 'table' ORDER BY name").pluck().all() as string[];
+
+describe('job commands', () => {
+  it("come from each family's jobs declaration: the table the history used before, exactly", () => {
+    expect(jobCommandsOf(families)).toEqual({
+      'duet.start': 'start',
+      'xtool.run-file': 'start',
+      'prunt.runFile': 'start',
+      'g2core.run-job': 'start',
+      'duet.pause': 'pause',
+      'xtool.pause': 'pause',
+      'prunt.pause': 'pause',
+      'g2core.feedhold': 'pause',
+      'duet.resume': 'resume',
+      'xtool.resume': 'resume',
+      'prunt.resume': 'resume',
+      'g2core.resume': 'resume',
+      'duet.cancel': 'stop',
+      'duet.estop': 'stop',
+      'xtool.stop': 'stop',
+      'prunt.cancel': 'stop',
+      'g2core.kill': 'stop',
+    });
+  });
+});
 
 describe('history database: migrations', () => {
   it('creates every table from an empty file, WAL and synchronous NORMAL', () => {

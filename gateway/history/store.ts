@@ -1,5 +1,6 @@
 import type Database from 'better-sqlite3';
-import type { WatchSummary } from '../../src/fleet/contract';
+import type { JobCommandIds, WatchSummary } from '../../src/fleet/contract';
+import type { HistoryDays } from '../../src/fleet/server-part';
 import type { Logger } from '../log';
 import { DEFAULT_RETENTION, type Retention } from '../settings';
 import { openHistoryDb, type Db, type Migration, MIGRATIONS } from './db';
@@ -12,7 +13,7 @@ import { localDay } from './shifts';
  * SQLite file (db.ts); each change is one transaction.
  *
  * Jobs. A job opens when a machine goes to `running` or `paused` with no job open, and ends:
- * - `cancelled`: it went to `idle` after a stop command from the console (`JOB_COMMANDS`) during
+ * - `cancelled`: it went to `idle` after a stop command from the console (`jobCommands`) during
  *   the job, or a stop command came within `LATE_STOP_MS` after it went idle (the watch can see
  *   the machine stop before the gateway has the command's answer);
  * - `failed`: it went to `alarm` (the alarm's text is kept as `end_alarm`);
@@ -38,26 +39,26 @@ export type Outcome = (typeof OUTCOMES)[number];
 
 export type JobCommand = 'start' | 'pause' | 'resume' | 'stop';
 
-/** The console's job commands (the `X-Shopdeck-Command` ids the families send) by what they do. */
-export const JOB_COMMANDS: Readonly<Record<string, JobCommand>> = {
-  'duet.start': 'start',
-  'xtool.run-file': 'start',
-  'prunt.runFile': 'start',
-  'g2core.run-job': 'start',
-  'duet.pause': 'pause',
-  'xtool.pause': 'pause',
-  'prunt.pause': 'pause',
-  'g2core.feedhold': 'pause',
-  'duet.resume': 'resume',
-  'xtool.resume': 'resume',
-  'prunt.resume': 'resume',
-  'g2core.resume': 'resume',
-  'duet.cancel': 'stop',
-  'duet.estop': 'stop',
-  'xtool.stop': 'stop',
-  'prunt.cancel': 'stop',
-  'g2core.kill': 'stop',
-};
+/**
+ * The console's job commands (the `X-Shopdeck-Command` ids the families send) by what they do,
+ * from each family's `jobs` declaration (`FamilyDeclaration.jobs`): its emergency stop also
+ * stops the job.
+ */
+export function jobCommandsOf(
+  families: Partial<Record<string, { jobs?: JobCommandIds }>>,
+): Readonly<Record<string, JobCommand>> {
+  const out: Record<string, JobCommand> = {};
+  for (const f of Object.values(families)) {
+    const j = f?.jobs;
+    if (!j) continue;
+    if (j.start) out[j.start] = 'start';
+    out[j.pause] = 'pause';
+    out[j.resume] = 'resume';
+    out[j.stop] = 'stop';
+    if (j.estop) out[j.estop] = 'stop';
+  }
+  return out;
+}
 
 export const HEARTBEAT_MS = 5000;
 /** A summary with no change refreshes the last-seen time at most this often. */
@@ -172,6 +173,8 @@ export interface HistoryStoreOptions {
   retention?: () => Retention;
   /** Tests: open with fewer migrations (an older version of the file). */
   migrations?: readonly Migration[];
+  /** The job commands by what they do (`jobCommandsOf(families)`). */
+  jobCommands: Readonly<Record<string, JobCommand>>;
 }
 
 interface LiveJob {
@@ -473,7 +476,7 @@ export class HistoryStore {
 
   /** A command the gateway forwarded to a machine and the machine accepted (from the audit record). */
   command(machine: string, commandId: string | undefined, user: string): void {
-    const kind = commandId ? JOB_COMMANDS[commandId] : undefined;
+    const kind = commandId ? this.opts.jobCommands[commandId] : undefined;
     if (!kind) return;
     const who = clip(user, MAX_USER) ?? 'unknown';
     this.guarded(machine, 'a job command', () => {
@@ -621,6 +624,18 @@ export class HistoryStore {
 
   get isClosed(): boolean {
     return this.closed;
+  }
+
+  /** The days of statistics a controller keeps itself (`touchcut_days`), for a family's puller. */
+  statsDays(): HistoryDays {
+    const closed = (): boolean => this.closed;
+    return {
+      get isClosed() {
+        return closed();
+      },
+      held: (machine, fromDay) => this.touchcutDaysHeld(machine, fromDay),
+      put: (machine, day, stats, pulledAt) => this.putTouchcutDay(machine, day, stats, pulledAt),
+    };
   }
 
   // ------------------------------------------------------------------------------ TouchCut

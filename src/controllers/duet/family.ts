@@ -1,4 +1,4 @@
-import type { FamilyDescriptor } from '../../fleet/contract';
+import type { NodeFamily } from '../../fleet/server-part';
 import type { SimOptions, Simulator } from '../../fleet/sim';
 import { duetDeclaration } from './declaration';
 import { duetHeldSessionFor, type DuetApiState } from './gateway';
@@ -11,8 +11,16 @@ import { createRrfSimulator } from './sim/standalone';
  * RepRapFirmware for a machine whose `api` is `standalone`). The gateway and `npm run sim` import
  * it; the browser imports `declaration.ts` only (no simulator in the page).
  */
-export const duetFamily: FamilyDescriptor = {
+export const duetFamily: NodeFamily = {
   ...duetDeclaration,
+  demo: [
+    { id: 'demo-duet', name: 'Printer bay — Duet 3' },
+    { id: 'demo-duet-standalone', name: 'Printer bay — Duet 2 (standalone)', api: 'standalone' },
+  ],
+  machineFields: ['api'],
+  simVariants: [
+    { id: 'sim-duet-standalone', label: 'Duet (standalone RepRapFirmware, rr_*)', machineApi: 'standalone' },
+  ],
   gateway: {
     ...duetDeclaration.gateway,
     /**

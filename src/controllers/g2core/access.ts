@@ -20,7 +20,7 @@ import {
  *              (`PUT /machine/mfo|mto|sso` with a number)
  *  supervisor  settings (`PUT /machine/…`), jobs with any other line (the refusal names it), the G-code console (any other POST /operation),
  *              triggering alarm/shutdown/panic (`GET /machine/alarm|shutd|panic`), deleting jobs,
- *              the hard reset of a serial board (`POST /board/reset`, gateway/g2core-serial/),
+ *              the hard reset of a serial board (`POST /board/reset`, src/controllers/g2core/server/),
  *              anything undeclared that is not a GET, WebSocket upgrades (g2core has none).
  *
  * Keys are classified in their canonical form (`canonicalKey`): `/machine/sys/clear`,
@@ -450,7 +450,7 @@ export const g2coreAccess: AccessPolicy = (req) => {
   if (m === 'PUT' && top === 'job' && n === 2 && id)
     return operator('start, pause, kill or reorder a job', controlId(req.body, 'state'));
   if (m === 'DELETE' && top === 'job' && n === 2 && id) return supervisor('delete a job');
-  // A serial board's hard reset (^X), served by the gateway's bridge (gateway/g2core-serial/).
+  // A serial board's hard reset (^X), served by the gateway's bridge (src/controllers/g2core/server/).
   if (m === 'POST' && top === 'board' && n === 2 && id === 'reset')
     return supervisor('reset the board (^X): a serial board stuck in run');
   return defaultDecision(req);

@@ -186,7 +186,7 @@ export class G2coreClient {
   }
 
   /**
-   * The hard reset (^X) of a board the gateway drives over USB serial (gateway/g2core-serial/):
+   * The hard reset (^X) of a board the gateway drives over USB serial (src/controllers/g2core/server/):
    * `POST /board/reset`, answered by the gateway's bridge (a REST g2core has no such endpoint).
    */
   async resetBoard(commandId: string): Promise<void> {

@@ -78,7 +78,7 @@ export const STAT_SHUTDOWN = 12;
 export const STAT_PANIC = 13;
 
 /**
- * The words of the gateway's serial bridge (gateway/g2core-serial/) for a board that went silent
+ * The words of the gateway's serial bridge (src/controllers/g2core/server/) for a board that went silent
  * while running (the firmware's known "stuck in run" state): the page offers a supervisor the
  * board's hard reset (`POST /board/reset`) while its status reads answer with them.
  */

@@ -1,4 +1,4 @@
-import type { FamilyDescriptor } from '../../fleet/contract';
+import type { NodeFamily } from '../../fleet/server-part';
 import { pruntDeclaration } from './declaration';
 import { createPruntSimulator } from './sim/sim';
 
@@ -8,8 +8,9 @@ import { createPruntSimulator } from './sim/sim';
  * module API (the document's) unless the machine id mentions "flat" or "2025", which gives the
  * deployed 2025 flat API with its exact fixtures.
  */
-export const pruntFamily: FamilyDescriptor = {
+export const pruntFamily: NodeFamily = {
   ...pruntDeclaration,
+  demo: [{ id: 'demo-prunt', name: 'Printer bay — Prunt' }],
   createSimulator: (opts) =>
     createPruntSimulator({ ...opts, api: /flat|2025/.test(opts.id) ? 'flat' : 'module' }),
 };

@@ -1,4 +1,4 @@
-import type { FamilyDescriptor } from '../../fleet/contract';
+import type { NodeFamily } from '../../fleet/server-part';
 import { touchcutDeclaration } from './declaration';
 import { createTouchcutSimulator } from './sim/simulator';
 
@@ -8,7 +8,8 @@ export { touchcutGateway } from './declaration';
  * The Kinetic TouchCut family as Node sees it: its declaration and the simulator. The gateway
  * and `npm run sim` import it; the browser imports `declaration.ts` only (no simulator in the page).
  */
-export const touchcutFamily: FamilyDescriptor = {
+export const touchcutFamily: NodeFamily = {
   ...touchcutDeclaration,
+  demo: [{ id: 'demo-touchcut', name: 'Plasma table — TouchCut' }],
   createSimulator: createTouchcutSimulator,
 };

@@ -3,7 +3,7 @@ import type { SimJob } from './state';
 
 /**
  * The job resources of the REST design as both g2core servers answer them: the simulator
- * (jobs.ts) and the gateway's serial bridge (gateway/g2core-serial/). Node-safe.
+ * (jobs.ts) and the gateway's serial bridge (src/controllers/g2core/server/). Node-safe.
  */
 
 /**

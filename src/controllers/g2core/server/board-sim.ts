@@ -1,4 +1,4 @@
-import configGroups from '../../src/controllers/g2core/sim/data/config-groups-100.12.json' with { type: 'json' };
+import configGroups from '../sim/data/config-groups-100.12.json' with { type: 'json' };
 import { CTRL, MAX_LINE_BYTES, isObject, type Json, type JsonObject } from './protocol';
 
 /**

@@ -2,11 +2,23 @@ import path from 'node:path';
 import { SerialPortMock } from 'serialport';
 import type { BoardSim } from './board-sim';
 import { afterEach, describe, expect, it } from 'vitest';
-import { g2coreFamily } from '../../src/controllers/g2core/family';
-import { consoleFetch, login, startGateway, tempDir, user, writeJson, type Running } from '../test-util';
+import { g2coreFamily as g2coreDescriptor } from '../family';
+import { g2coreServer } from '.';
+import {
+  consoleFetch,
+  login,
+  startGateway,
+  tempDir,
+  user,
+  writeJson,
+  type Running,
+} from '../../../../gateway/test-util';
 import { mockBoard, type MockBoard } from './test-board';
-import type { GatewayOptions } from '../context';
-import type { FamilyDescriptor } from '../../src/fleet/contract';
+import type { GatewayOptions } from '../../../../gateway/context';
+import type { NodeFamily } from '../../../fleet/server-part';
+
+/** The family as src/controllers/families.ts lists it: with its server part. */
+const g2coreFamily: NodeFamily = { ...g2coreDescriptor, server: g2coreServer };
 
 /** The lines the board read, without the status requests that ask a quiet board whether it lives (the setup's sv and si first). */
 function boardRead(board: BoardSim): string[] {
@@ -314,7 +326,7 @@ describe('serial g2core through the gateway', () => {
     const watch = g2coreFamily.gateway?.sharing?.watch;
     const sharing = g2coreFamily.gateway?.sharing;
     if (!watch || !sharing) throw new Error('the g2core family declares no watch');
-    const family: FamilyDescriptor = {
+    const family: NodeFamily = {
       ...g2coreFamily,
       gateway: { ...g2coreFamily.gateway, sharing: { ...sharing, watch: { ...watch, everyMs: 100 } } },
     };

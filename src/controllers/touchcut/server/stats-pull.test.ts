@@ -1,11 +1,16 @@
 import path from 'node:path';
 import { afterEach, describe, expect, it } from 'vitest';
-import { touchcutFamily } from '../../src/controllers/touchcut/family';
-import { createLogger } from '../log';
-import { consoleFetch, startGateway, tempDir } from '../test-util';
-import { addDays, localDay } from './shifts';
-import { HistoryStore } from './store';
-import { BACKFILL_DAYS, TouchcutStatsPuller } from './touchcut-stats';
+import { createLogger } from '../../../../gateway/log';
+import { consoleFetch, startGateway, tempDir } from '../../../../gateway/test-util';
+import { addDays, localDay } from '../../../../gateway/history/shifts';
+import { HistoryStore, jobCommandsOf } from '../../../../gateway/history/store';
+import type { NodeFamily } from '../../../fleet/server-part';
+import { touchcutFamily as touchcutDescriptor } from '../family';
+import { touchcutServer } from '.';
+import { BACKFILL_DAYS, TouchcutStatsPuller } from './stats-pull';
+
+/** The family as src/controllers/families.ts lists it: with its server part. */
+const touchcutFamily: NodeFamily = { ...touchcutDescriptor, server: touchcutServer };
 
 /** TouchCut's daily statistics pulled into the history store. */
 
@@ -23,7 +28,12 @@ describe('TouchCut statistics puller', () => {
     const lines: string[] = [];
     const log = createLogger({ write: (l) => lines.push(l) });
     const clock = { now: new Date(2026, 2, 10, 9, 0).getTime() };
-    const store = new HistoryStore({ file: path.join(t.dir, 'h.sqlite'), log, now: () => clock.now });
+    const store = new HistoryStore({
+      file: path.join(t.dir, 'h.sqlite'),
+      log,
+      now: () => clock.now,
+      jobCommands: jobCommandsOf({}),
+    });
     cleanups.push(() => store.close());
     const asked: string[] = [];
     let answer: (day: string) => { status: number; body: string; gateway?: boolean } = (day) => ({
@@ -34,7 +44,7 @@ describe('TouchCut statistics puller', () => {
       }),
     });
     const puller = new TouchcutStatsPuller({
-      store,
+      days: store.statsDays(),
       machines: [{ id: 't1', name: 'Plasma', kind: 'touchcut' }],
       read: (_m, p) => {
         asked.push(p);

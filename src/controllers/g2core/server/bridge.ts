@@ -1,17 +1,11 @@
-import configGroups from '../../src/controllers/g2core/sim/data/config-groups-100.12.json' with { type: 'json' };
-import { STUCK_IN_RUN } from '../../src/controllers/g2core/codes';
-import { jsonResponse, splitPath, type Simulator } from '../../src/fleet/sim';
-import {
-  G2Fail,
-  errorResponse,
-  isRecord,
-  parseFilter,
-  readBody,
-} from '../../src/controllers/g2core/sim/fail';
+import configGroups from '../sim/data/config-groups-100.12.json' with { type: 'json' };
+import { STUCK_IN_RUN } from '../codes';
+import { jsonResponse, splitPath, type Simulator } from '../../../fleet/sim';
+import { G2Fail, errorResponse, isRecord, parseFilter, readBody } from '../sim/fail';
 import { LinkDown, SerialLink, UnsafeBytes, type PortOpener } from './link';
 import { isObject, lineProblem, tooLong, type Json, type JsonObject } from './protocol';
 import { MAX_JOB_BYTES, Streamer, type SerialJob, type SerialOp, type StreamerEvents } from './streamer';
-import { jobView, readJobUpload } from '../../src/controllers/g2core/sim/job-wire';
+import { jobView, readJobUpload } from '../sim/job-wire';
 
 /**
  * The g2core REST design (../shared/protocols/g2core-rest-design.txt, as the console settled it in

@@ -2,7 +2,10 @@ import dgram from 'node:dgram';
 import net from 'node:net';
 import { afterEach, describe, expect, it } from 'vitest';
 import { discoverXtool, parseReply } from './discovery';
-import { startGateway, tempDir, consoleFetch } from './test-util';
+import path from 'node:path';
+import { startGateway, tempDir, consoleFetch, login, user, writeJson } from '../../../../gateway/test-util';
+import { xtoolFamily } from '../family';
+import { xtoolServer } from '.';
 
 /**
  * A laser stand-in on 127.0.0.1: receives the broadcast on its UDP port, answers on TCP first,
@@ -99,7 +102,8 @@ describe('xTool discovery', () => {
     cleanups.push(t.cleanup);
     const gw = await startGateway({
       machines: { file: null, machines: [] },
-      families: {},
+      // The route is the xTool family's server part's (as src/controllers/families.ts lists it).
+      families: { xtool: { ...xtoolFamily, server: xtoolServer } },
       dataDir: t.dir,
       env: { SHOPDECK_DISCOVERY_BROADCAST: '127.0.0.1' },
       discovery: { udpPort: laser.port, listenUdpPort, tcpPort, listenMs: 1000, bindAddress: '127.0.0.1' },
@@ -111,5 +115,40 @@ describe('xTool discovery', () => {
     };
     expect(body.broadcast).toBe('127.0.0.1');
     expect(body.replies.map((x) => x.via).sort()).toEqual(['tcp', 'udp']);
+  });
+
+  it('the route the family declares keeps its guard: no session 401, viewer and operator 403, other methods and families 404', async () => {
+    const t = tempDir();
+    cleanups.push(t.cleanup);
+    const usersFile = writeJson(path.join(t.dir, 'users.json'), {
+      users: [user('vera', 'viewer', 'viewer-pass-1'), user('otto', 'operator', 'operator-pass-1')],
+    });
+    const gw = await startGateway({
+      machines: { file: null, machines: [] },
+      families: { xtool: { ...xtoolFamily, server: xtoolServer } },
+      dataDir: t.dir,
+      usersFile,
+      env: {},
+      // Nothing answers here: a request that got past the guard would still end (and fail the test).
+      discovery: { broadcast: '127.0.0.1', udpPort: 9, tcpPort: 0, listenMs: 50, bindAddress: '127.0.0.1' },
+    });
+    cleanups.push(gw.close);
+    const url = `${gw.url}/api/discover/xtool`;
+    expect((await consoleFetch(url)).status).toBe(401);
+    for (const [name, pass] of [
+      ['vera', 'viewer-pass-1'],
+      ['otto', 'operator-pass-1'],
+    ] as const) {
+      const cookie = await login(gw.url, name, pass);
+      const r = await consoleFetch(url, { headers: { cookie } });
+      expect(r.status).toBe(403);
+      expect(await r.json()).toEqual({
+        error: 'finding lasers on the network is for supervisors',
+        needs: 'supervisor',
+      });
+      const post = await consoleFetch(url, { method: 'POST', headers: { cookie } });
+      expect(post.status).toBe(404);
+      expect((await consoleFetch(`${gw.url}/api/discover/duet`, { headers: { cookie } })).status).toBe(404);
+    }
   });
 });

@@ -1,6 +1,6 @@
-import { statusText } from '../../src/controllers/g2core/codes';
-import { G2Fail } from '../../src/controllers/g2core/sim/fail';
-import { pruneEndedJobs } from '../../src/controllers/g2core/sim/job-wire';
+import { statusText } from '../codes';
+import { G2Fail } from '../sim/fail';
+import { pruneEndedJobs } from '../sim/job-wire';
 import {
   CTRL,
   MAX_REPORT_KEYS,

@@ -1,6 +1,7 @@
 import dgram from 'node:dgram';
 import net from 'node:net';
 import { z } from 'zod';
+import type { DiscoveryOptions } from '../../../fleet/server-part';
 
 /**
  * xTool discovery (protocol document, "Discovery"): broadcast `{"requestId":n}` to UDP 20000;
@@ -8,19 +9,7 @@ import { z } from 'zod';
  * both for `listenMs` and collect the answers that carry our request id.
  */
 
-export interface DiscoveryOptions {
-  /** Broadcast address (SHOPDECK_DISCOVERY_BROADCAST, default 255.255.255.255). */
-  broadcast: string;
-  /** UDP port the lasers listen on (20000). */
-  udpPort: number;
-  /** UDP port we listen on for answers (default: udpPort, where lasers answer). */
-  listenUdpPort?: number;
-  /** TCP port we listen on for answers (20001). */
-  tcpPort: number;
-  listenMs: number;
-  /** Address to bind the listeners to (default all). */
-  bindAddress?: string;
-}
+export type { DiscoveryOptions };
 
 export interface DiscoveryReply {
   name: string;

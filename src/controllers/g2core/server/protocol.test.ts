@@ -7,7 +7,7 @@ import { pickBoardPort, classifyOpenError } from './link';
 
 /** The wire protocol against the captures in ../shared/fixtures/g2core (SOURCES.md). */
 
-const FIX = path.resolve(__dirname, '../../../shared/fixtures/g2core');
+const FIX = path.resolve(__dirname, '../../../../../shared/fixtures/g2core');
 
 function session(name: string): Array<{ dir: 'tx' | 'rx'; raw: string }> {
   return readFileSync(path.join(FIX, 'sessions', name), 'utf8')

@@ -1,7 +1,12 @@
-import { statsSchema } from '../../src/controllers/touchcut/wire';
-import type { Logger } from '../log';
-import { addDays, localDay } from './shifts';
-import type { HistoryMachine, HistoryStore } from './store';
+import { addDays, localDay } from '../../../../gateway/history/shifts';
+import type { HistoryDays, PartLog } from '../../../fleet/server-part';
+import { statsSchema } from '../wire';
+
+interface HistoryMachine {
+  id: string;
+  name: string;
+  kind: string;
+}
 
 /**
  * TouchCut's own production statistics, pulled into the history store one completed day at a time
@@ -26,10 +31,11 @@ export type StatsRead = (
 ) => Promise<{ status: number; body: string; gateway?: boolean }>;
 
 export interface TouchcutStatsOptions {
-  store: HistoryStore;
+  /** The history's days of statistics (`touchcut_days`). */
+  days: HistoryDays;
   machines: readonly HistoryMachine[];
   read: StatsRead;
-  log: Logger;
+  log: PartLog;
   now?: () => number;
   backfillDays?: number;
 }
@@ -48,14 +54,14 @@ export class TouchcutStatsPuller {
     let failed = 0;
     const now = this.o.now ?? Date.now;
     for (const m of this.o.machines) {
-      if (this.stopped || this.o.store.isClosed) break;
+      if (this.stopped || this.o.days.isClosed) break;
       const today = localDay(now());
       const first = addDays(today, -(this.o.backfillDays ?? BACKFILL_DAYS));
-      const held = this.o.store.touchcutDaysHeld(m.id, first);
+      const held = this.o.days.held(m.id, first);
       for (let day = first; day < today; day = addDays(day, 1)) {
         if (held.has(day)) continue;
         const problem = await this.pullDay(m, day, now);
-        if (this.stopped || this.o.store.isClosed) break;
+        if (this.stopped || this.o.days.isClosed) break;
         if (problem) {
           failed++;
           if (this.failedOn.get(m.id) !== today) {
@@ -93,8 +99,8 @@ export class TouchcutStatsPuller {
       const i = valid.error.issues[0];
       return `rest/v1/stats: ${i ? `${i.path.join('.')}: ${i.message}` : 'invalid'}`;
     }
-    if (this.o.store.isClosed) return 'the history store is closed';
-    this.o.store.putTouchcutDay(m.id, day, json, now());
+    if (this.o.days.isClosed) return 'the history store is closed';
+    this.o.days.put(m.id, day, json, now());
     return null;
   }
 

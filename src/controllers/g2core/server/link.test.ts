@@ -13,7 +13,7 @@ import { isObject, type Json } from './protocol';
  * the answer that names it, every G-code line an answer, nothing left waiting or failed.
  */
 
-const FIX = path.resolve(__dirname, '../../../shared/fixtures/g2core/sessions');
+const FIX = path.resolve(__dirname, '../../../../../shared/fixtures/g2core/sessions');
 
 async function replay(
   file: string,

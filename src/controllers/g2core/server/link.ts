@@ -1,3 +1,4 @@
+import type { OpenPort, PortEvents, PortInfo, PortOpener } from '../../../fleet/server-part';
 import {
   BOARD_USB_IDS,
   CTRL,
@@ -45,28 +46,8 @@ export function jsonKeyOf(line: string): string | null {
   return GCODE_ANSWER_KEYS.has(k) ? null : k;
 }
 
-export interface PortInfo {
-  path: string;
-  vendorId?: string;
-  productId?: string;
-}
-
-/** What an opened port offers the link. Writes are whole lines or single controls, in order, as bytes. */
-export interface OpenPort {
-  write(data: Buffer): void;
-  close(): Promise<void>;
-}
-
-export interface PortEvents {
-  data(chunk: Buffer): void;
-  /** The port went away (unplugged, or an error ended it). */
-  closed(why: string): void;
-}
-
-export interface PortOpener {
-  open(path: string, baudRate: number, events: PortEvents): Promise<OpenPort>;
-  list(): Promise<PortInfo[]>;
-}
+/** The port types are every serial part's (src/fleet/server-part.ts). */
+export type { OpenPort, PortEvents, PortInfo, PortOpener };
 
 export type LinkState =
   | { state: 'connecting' }
