@@ -108,7 +108,7 @@ describe('machines file', () => {
     const { file, message } = problemsOf([good, { ...good, id: 'cutter', kind: 'plasmatron' }]);
     expect(message).toContain(file);
     expect(message).toMatch(
-      /machines\[1\] \(id "cutter"\): field "kind": must be one of touchcut, g2core, duet, xtool, prunt/,
+      /machines\[1\] \(id "cutter"\): field "kind": must be one of xtool, touchcut, duet, prunt, g2core/,
     );
   });
 
