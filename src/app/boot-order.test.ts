@@ -195,3 +195,31 @@ describe('boot', () => {
     await vi.waitFor(() => expect([...order].sort()).toEqual(['prunt', 'touchcut']), { timeout: 3000 });
   });
 });
+
+// After the cases above that change the statically imported registry: this one resets the modules.
+describe('boot, the first requests', () => {
+  it('asks for the machine list beside the session, not after its answer (issue 34: one round trip)', async () => {
+    history.replaceState(null, '', '/');
+    vi.resetModules();
+    const asked: string[] = [];
+    let answerSession: (r: Response) => void = () => undefined;
+    vi.stubGlobal(
+      'fetch',
+      vi.fn((url: string) => {
+        asked.push(url);
+        if (url.startsWith('/api/machines')) return Promise.resolve(answer({ machines: [] }));
+        return new Promise<Response>((r) => (answerSession = r));
+      }),
+    );
+    const { boot } = await import('./boot');
+    const { fleetStore } = await import('../fleet/fleet');
+    const done = boot();
+    await new Promise((r) => setTimeout(r, 0));
+    // The session has not answered yet, and the machine list is on its way.
+    expect(asked).toContain('/api/session');
+    expect(asked).toContain('/api/machines');
+    answerSession(answer({ mode: 'open', user: null }));
+    await done;
+    expect(fleetStore.getState().status).toBe('ready');
+  });
+});
