@@ -54,7 +54,7 @@ export function alarmsRoutes({ alarms, record, mayUseMachine }: AlarmsServices):
     {
       method: 'POST',
       path: '/api/alarms/ack',
-      // The operator's check comes after the alarm is found (above).
+      // Needs an operator, checked after the alarm is found (its refusal audited): see the top.
       role: 'viewer',
       touch: true,
       changesState: true,
