@@ -2,6 +2,7 @@ import type { IncomingMessage, ServerResponse } from 'node:http';
 import type { Duplex } from 'node:stream';
 import { forceNoStore } from './answer-headers';
 import { createApi } from './api';
+import type { ApiRoute } from './routes/route';
 import { createContext, type GatewayOptions } from './context';
 import type { AuditLog } from './audit';
 import { crossSiteProblem } from './csrf';
@@ -58,6 +59,8 @@ export interface Gateway {
   readSocketHeld(): ReadSocketHeld;
   /** Shared controller sockets of a machine (streams.ts): browser sockets joined, hubs open. */
   streamStats(id: string): { joined: number; open: number };
+  /** The declared `/api/*` routes (api.ts, routes/): tests go over the table. */
+  readonly apiRoutes: readonly ApiRoute[];
 }
 
 export function createGateway(opts: GatewayOptions): Gateway {
@@ -323,6 +326,7 @@ export function createGateway(opts: GatewayOptions): Gateway {
     streamStats: (id: string) => ctx.streams.stats(id),
     readSockets: () => readSocket.open,
     readSocketHeld: () => readSocket.held(),
+    apiRoutes: api.routes,
   };
 }
 

@@ -8,8 +8,7 @@ import {
   type SimPanel,
   type SimSet,
 } from '../src/fleet/sim-panel';
-import { roleAtLeast } from '../src/fleet/types';
-import type { GatewayContext } from './context';
+import type { GatewayContext, Principal } from './context';
 import { clientAddress, decodeSegment, readJson, sendJson } from './http-util';
 import type { MachineEntry } from './machines';
 
@@ -30,7 +29,12 @@ import type { MachineEntry } from './machines';
  * machine (`commandId: "sim.<group>.<id>"`); refused changes as refusals.
  */
 
-export const SIM_API_PATH = /^\/api\/sim\/([^/]+)$/;
+export const SIM_API_PATH = /^\/api\/sim\/(?<id>[^/]+)$/;
+
+/** The path the audit log names for a request on the simulator of `id` (decoded, cut short). */
+export function simAuditPath(id: string): string {
+  return `/api/sim/${id.slice(0, 40)}`;
+}
 
 /** What the panel shows for this simulator right now. */
 export function simPanel(m: MachineEntry, sim: FaultySimulator): SimPanel {
@@ -50,8 +54,14 @@ export function simPanel(m: MachineEntry, sim: FaultySimulator): SimPanel {
 
 class BadControl extends Error {}
 
+/** What the simulator's route uses of the gateway. */
+export type SimServices = Pick<
+  GatewayContext,
+  'byId' | 'mayUseMachine' | 'record' | 'simulatorFor' | 'resetSimulator' | 'builtInDemo' | 'startDemoJob'
+>;
+
 /** Sets or runs one control; returns what the audit log says about it. */
-function apply(ctx: GatewayContext, m: MachineEntry, sim: FaultySimulator, set: SimSet): string {
+function apply(ctx: SimServices, m: MachineEntry, sim: FaultySimulator, set: SimSet): string {
   const v = set.value;
   switch (set.group) {
     case 'world': {
@@ -90,21 +100,24 @@ function apply(ctx: GatewayContext, m: MachineEntry, sim: FaultySimulator, set: 
 }
 
 /** `lookNow`: the watch reads the machine at once after a change (gateway.ts), so the alarm centre sees each. */
-export function createSimApi(ctx: GatewayContext, lookNow?: (id: string) => void) {
-  const { who, byId, mayUseMachine, needLogin, record, simulatorFor } = ctx;
+export function createSimApi(ctx: SimServices, lookNow?: (id: string) => void) {
+  const { byId, mayUseMachine, record, simulatorFor } = ctx;
 
-  return async function simApi(req: IncomingMessage, res: ServerResponse, rawId: string): Promise<void> {
+  /**
+   * After the dispatcher's checks (routes/machines.ts: GET or POST, a supervisor's session, the
+   * refusals of a POST audited): `p` is who asks.
+   */
+  return async function simApi(
+    req: IncomingMessage,
+    res: ServerResponse,
+    rawId: string,
+    p: Principal,
+  ): Promise<void> {
     const method = (req.method ?? 'GET').toUpperCase();
     const post = method === 'POST';
-    if (!post && method !== 'GET') {
-      req.resume();
-      sendJson(res, 405, { error: 'GET or POST' }, { Allow: 'GET, POST' });
-      return;
-    }
     const id = decodeSegment(rawId);
     const address = clientAddress(req);
-    const path = `/api/sim/${id.slice(0, 40)}`;
-    const w = who(req, post);
+    const path = simAuditPath(id);
     /** A refused change is written to the audit log (reads are not). */
     const refuse = (error: string): void => {
       req.resume();
@@ -112,8 +125,8 @@ export function createSimApi(ctx: GatewayContext, lookNow?: (id: string) => void
       record({
         type: 'refused',
         result: 'refused',
-        user: w.principal?.name ?? 'nobody',
-        onBehalfOf: w.principal?.onBehalfOf,
+        user: p.name,
+        onBehalfOf: p.onBehalfOf,
         source: 'gateway',
         machine: byId.has(id) ? id : undefined,
         method,
@@ -123,18 +136,6 @@ export function createSimApi(ctx: GatewayContext, lookNow?: (id: string) => void
         error,
       });
     };
-    if (!w.principal) {
-      refuse(w.expired ? 'session expired' : 'not logged in');
-      needLogin(res, w);
-      return;
-    }
-    const p = w.principal;
-    if (!roleAtLeast(p.role, 'supervisor')) {
-      const error = `the simulator is for supervisors (${p.name} is ${p.role})`;
-      refuse(error);
-      sendJson(res, 403, { error, needs: 'supervisor' });
-      return;
-    }
     const m = byId.get(id);
     if (!m || !m.simulated || !mayUseMachine(p, m.id)) {
       const error = `no simulated machine "${id.slice(0, 40)}"`;

@@ -1,6 +1,6 @@
 import type { IncomingMessage, ServerResponse } from 'node:http';
 import type { JsonRecord, TemperatureDecl, TemperatureReading } from '../src/fleet/contract';
-import type { GatewayContext } from './context';
+import type { GatewayContext, Principal } from './context';
 import { decodeSegment, sendJson } from './http-util';
 
 /**
@@ -294,28 +294,29 @@ export class TemperatureStore {
   }
 }
 
-export const TEMPERATURES_API_PATH = /^\/api\/machines\/([^/]+)\/temperatures$/;
+export const TEMPERATURES_API_PATH = /^\/api\/machines\/(?<id>[^/]+)\/temperatures$/;
 
 /**
  * `GET /api/machines/<id>/temperatures?since=<ms>`: any signed-in user with the machine in their
  * list (everyone in open mode); a machine that is not theirs answers 404 as one that does not
- * exist; no session 401; not GET 405; a `since` that is not a whole number 400.
+ * exist; no session 401; not GET 405 (both the route's declaration, routes/machines.ts); a
+ * `since` that is not a whole number 400.
  */
-export function createTemperaturesApi(ctx: GatewayContext, store: TemperatureStore) {
-  return function temperaturesApi(req: IncomingMessage, res: ServerResponse, url: URL, rawId: string): void {
+export function createTemperaturesApi(
+  ctx: Pick<GatewayContext, 'byId' | 'mayUseMachine'>,
+  store: TemperatureStore,
+) {
+  return function temperaturesApi(
+    req: IncomingMessage,
+    res: ServerResponse,
+    url: URL,
+    rawId: string,
+    principal: Principal,
+  ): void {
     req.resume();
-    if ((req.method ?? 'GET') !== 'GET') {
-      sendJson(res, 405, { error: 'GET only' }, { Allow: 'GET' });
-      return;
-    }
-    const w = ctx.who(req, false);
-    if (!w.principal) {
-      ctx.needLogin(res, w);
-      return;
-    }
     const id = decodeSegment(rawId);
     const m = ctx.byId.get(id);
-    if (!m || !ctx.mayUseMachine(w.principal, m.id)) {
+    if (!m || !ctx.mayUseMachine(principal, m.id)) {
       sendJson(res, 404, { error: 'no such machine' });
       return;
     }

@@ -1,5 +1,5 @@
 import type { IncomingMessage, ServerResponse } from 'node:http';
-import type { GatewayContext } from '../context';
+import type { GatewayContext, Principal, Who } from '../context';
 import { clientAddress, sendJson } from '../http-util';
 import type { History } from './index';
 
@@ -13,20 +13,16 @@ export const HISTORY_API_PATH = /^\/api\/history\/[a-z-]+(\.csv)?$/;
 export { MAX_RANGE_DAYS } from './answers';
 
 export function createHistoryApi(ctx: GatewayContext, history: History) {
-  const { who, needLogin, config } = ctx;
+  const { config } = ctx;
 
-  return async function historyApi(req: IncomingMessage, res: ServerResponse, url: URL): Promise<void> {
+  /** After the dispatcher's checks (routes/history.ts): a GET of a signed-in user (`w`). */
+  return async function historyApi(
+    req: IncomingMessage,
+    res: ServerResponse,
+    url: URL,
+    w: Who & { principal: Principal },
+  ): Promise<void> {
     req.resume();
-    const method = (req.method ?? 'GET').toUpperCase();
-    if (method !== 'GET') {
-      sendJson(res, 405, { error: 'the history is read-only: GET' }, { Allow: 'GET' });
-      return;
-    }
-    const w = who(req, false);
-    if (!w.principal) {
-      needLogin(res, w);
-      return;
-    }
     const store = history.store;
     const reads = history.reads;
     if (!store || !reads) {
