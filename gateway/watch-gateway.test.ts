@@ -107,14 +107,18 @@ async function receiver(): Promise<{ url: string; got: unknown[]; close(): Promi
 }
 
 describe('the alarm centre, with no page open', () => {
-  async function setup(o: { log?: Logger; dir?: string } = {}) {
+  /** `everyMs`: the watch's poll period (150 ms unless a test needs a reading to stand still). */
+  async function setup(o: { log?: Logger; dir?: string; everyMs?: number } = {}) {
     const sims = new Map<string, Simulator>();
     const sharing = xtoolFamily.gateway?.sharing;
     const watch = sharing?.watch;
     if (!sharing || !watch) throw new Error('the xTool family declares no watch');
     const family: FamilyDescriptor = {
       ...xtoolFamily,
-      gateway: { ...xtoolFamily.gateway, sharing: { ...sharing, watch: { ...watch, everyMs: 150 } } },
+      gateway: {
+        ...xtoolFamily.gateway,
+        sharing: { ...sharing, watch: { ...watch, everyMs: o.everyMs ?? 150 } },
+      },
       createSimulator: (o) => {
         const sim = xtoolFamily.createSimulator(o);
         sims.set(o.id, sim);
@@ -237,7 +241,10 @@ describe('the alarm centre, with no page open', () => {
   });
 
   it('the machines list carries the watch reading of the user machines only (the first screen)', async () => {
-    const { gw, flame } = await setup();
+    // The laser's reading of the flame stands until the watch's next poll (the D-series is idle
+    // again at once, and its poll says so): a slow poll here, so that a busy machine cannot let
+    // the reading pass between two looks at the list.
+    const { gw, flame } = await setup({ everyMs: 60_000 });
     const vera = await login(gw.url, 'vera', 'vera-pass-1');
     const lena = await login(gw.url, 'lena', 'lena-pass-1');
     type Listed = {
@@ -251,6 +258,10 @@ describe('the alarm centre, with no page open', () => {
       expect(r.status).toBe(200);
       return ((await r.json()) as Listed).machines;
     };
+    // The watch's first poll (within 2 s of its start) has read the laser: the flame comes after it.
+    await until('the laser read by the watch', async () =>
+      (await machines(vera)).some((m) => m.id === 'x1' && m.watch?.state === 'idle'),
+    );
     flame();
     let seen: Listed['machines'] = [];
     await until('the flame in the machines list', async () => {
