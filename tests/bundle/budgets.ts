@@ -45,7 +45,9 @@ export const SIZE_BUDGETS_KIB: Array<{ screen: RegExp; kib: number }> = [
   // 185 → 186 (issue 33): the tiles' alarm-aware shown state and the "N other alarms" line (185.4).
   // 186 → 187 (issue 33, 10 and 13): the same switch, the families' phrase tables (186.3).
   // 187 → 188 (issue 33, 6): the tiles' job facts from the one record and formatter (187.4).
-  { screen: /^fleet page, live tiles: /, kib: 188 },
+  // 188 → 189 (issue 34): the manifests (each family's kiosk words and pages beside its kind) and
+  // the first screen's parallel machine-list request; measured 188.0 KiB after both.
+  { screen: /^fleet page, live tiles: /, kib: 189 },
 ];
 
 /** The screens over their ceiling, in words (empty: all within budget). A screen without a ceiling is one too. */
