@@ -47,10 +47,16 @@ export const TimeSeriesChart = memo(function TimeSeriesChart(props: {
   const y = (v: number) => 4 + (1 - (v - min) / (max - min)) * (height - padB - 8);
   const ticks = [min, (min + max) / 2, max];
   // What the chart holds, said (and readable by tests): the most readings of one series in the window.
+  // The newest reading's time, too: once the window is full the count stays, the newest moves on.
   let readings = 0;
+  let newest = 0;
   for (const s of props.series) {
     let n = 0;
-    for (const [t] of s.points) if (t >= t0) n++;
+    for (const [t] of s.points)
+      if (t >= t0) {
+        n++;
+        if (t > newest) newest = t;
+      }
     readings = Math.max(readings, n);
   }
   const span =
@@ -61,7 +67,7 @@ export const TimeSeriesChart = memo(function TimeSeriesChart(props: {
     props.series.length > 1 ? ` of ${props.series.length} sensors` : ''
   }`;
   return (
-    <div data-testid={props.testId} data-readings={readings}>
+    <div data-testid={props.testId} data-readings={readings} data-newest={newest}>
       <svg
         className="ui-chart"
         viewBox={`0 0 ${width} ${height}`}
