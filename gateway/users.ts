@@ -27,12 +27,9 @@ export { UsersFileLockedError, withFileLock, type FileLockOptions } from './user
 
 /**
  * The users file (`SHOPDECK_USERS`, else `users.json` in the data folder). With no users file
- * the console runs open. Passwords and PINs are bcrypt hashes; the file is written 0600.
- *
- * ```json
- * { "users": [ { "name": "ana", "role": "operator", "machines": ["laser-1"],
- *                "passwordHash": "$2b$12$…", "pinHash": "$2b$12$…" } ] }
- * ```
+ * the console runs open. Passwords and PINs are bcrypt hashes; the file is written 0600:
+ * `{ "users": [ { "name": "ana", "role": "operator", "machines": ["laser-1"],
+ *   "passwordHash": "$2b$12$…", "pinHash": "$2b$12$…" } ] }`
  */
 
 export const USER_NAME = /^[A-Za-z0-9._@-]{1,64}$/;

@@ -32,12 +32,10 @@ import { defaultNames, type TlsMaterial } from './tls-cert';
 import { httpsFromEnv, ServerTls, type HttpsSetting } from './tls-setup';
 
 /**
- * Shopdeck's own server (`npm start`): the built console from `dist/` and the gateway (as the Vite
- * plugin mounts it, behind the same page headers), on node:http or node:https, without Vite.
- * Hashed `/assets/*` are immutable, everything else `no-cache` with an ETag, precompressed copies
- * sent, source maps never; README.md "Running it for the shop". Beside it: hosts.ts (listening,
- * allowed host names), tls-setup.ts (HTTPS), ca-page.ts (`/shopdeck-ca`), health.ts (`/healthz`),
- * banner.ts. `close()` stops within 5 s: WebSockets closed with 1001, the gateway, audit, alarms.
+ * Shopdeck's own server (`npm start`): the built console from `dist/` and the gateway, as the Vite
+ * plugin mounts it, on node:http or node:https (README.md "Running it for the shop"). Source maps
+ * are never served. Beside it: hosts.ts, tls-setup.ts, ca-page.ts (`/shopdeck-ca`), health.ts
+ * (`/healthz`), banner.ts. `close()` stops within 5 s (WebSockets closed with 1001).
  */
 
 export { CA_PAGE_PATH, CA_PATH, caPageHtml } from './ca-page';
