@@ -1,39 +1,17 @@
-import {
-  closeSync,
-  fsyncSync,
-  mkdirSync,
-  openSync,
-  readFileSync,
-  renameSync,
-  truncateSync,
-  writeFileSync,
-  writeSync,
-} from 'node:fs';
-import { open, rename } from 'node:fs/promises';
-import { join } from 'node:path';
-import { z } from 'zod';
-import { alarmRecordSchema, type AlarmRecord } from '../src/fleet/alarm-record';
+import type { AlarmRecord } from '../src/fleet/alarm-record';
 import type { WatchAlarm, WatchSummary } from '../src/fleet/contract';
 import { SEVERITY_RANK, type AlarmSeverity } from '../src/fleet/types';
+import { AlarmFiles } from './alarm-files';
 import type { Logger } from './log';
 import { SettingsStore } from './settings';
 import { Webhook } from './webhook';
 
 /**
- * The alarm centre: every alarm and message of every machine, as the gateway's watch sees them
- * (watch.ts), whether or not a page is open. A record opens when the controller raises an alarm,
- * clears itself when the controller no longer reports it (and stays in the history), and is
- * acknowledged by a person (who, when). A machine that goes offline during a job is an alarm of
- * its own. Kept in `alarms.json` in the data folder (written atomically), bounded.
- *
- * Durable before announced: every change is appended to `alarms.journal` (one JSON line per
- * record changed, written and fsynced synchronously) before anyone is told of it: the pages (the
- * list is read from memory only after this synchronous step), the webhook and the audit (the
- * `onChange` listener), the log and the audit's alarm line (the watch reports after it observes).
- * A SIGKILL right after the announcement keeps the record. `alarms.json` is the snapshot (written
- * to a temporary file, fsynced and renamed shortly after); it says which journal lines it holds
- * (`journal`), later lines are replayed at start, and the journal is emptied once a snapshot
- * holds all of it.
+ * The alarm centre: every alarm and message of every machine as the gateway's watch sees them
+ * (watch.ts), page open or not. A record opens when the controller raises an alarm, clears when it
+ * no longer reports it, and is acknowledged by a person (who, when); a machine going offline during
+ * a job is an alarm of its own. Durable before announced: each change is in `alarms.journal`
+ * (alarm-files.ts) before the pages, the webhook, the audit or the log learn of it.
  */
 
 export type { AlarmRecord };
@@ -74,15 +52,6 @@ export interface AlarmCentreOptions {
 export const OFFLINE_KEY = 'offline-during-job';
 const MAX_TEXT = 500;
 
-const fileSchema = z.object({
-  version: z.literal(1),
-  seq: z.number().int().nonnegative(),
-  /** The last journal line this snapshot holds (absent: none). */
-  journal: z.number().int().nonnegative().optional(),
-  records: z.array(alarmRecordSchema),
-});
-const journalLineSchema = z.object({ v: z.number().int().positive(), r: alarmRecordSchema });
-
 /** Newest and most severe first: severity, then active before cleared, then newest. */
 export function compareAlarms(a: AlarmRecord, b: AlarmRecord): number {
   return (
@@ -102,97 +71,26 @@ export class AlarmCentre {
   private seq = 0;
   /** Bumped on every change: a page that has this version has everything. */
   version = 0;
-  private readonly file: string | null;
-  private readonly journalFile: string | null;
-  /** The last journal line written (every change of a record is one). */
-  private journalSeq = 0;
   /** Records changed and events to announce since the last `commit()`. */
   private readonly dirty = new Set<AlarmRecord>();
   private readonly pending: Array<[AlarmEvent, AlarmRecord]> = [];
   private readonly now: () => number;
-  private writeTimer: ReturnType<typeof setTimeout> | null = null;
-  private writing: Promise<void> = Promise.resolve();
+  /** `alarms.json` and `alarms.journal` (alarm-files.ts). */
+  private readonly files: AlarmFiles;
 
   constructor(private readonly opts: AlarmCentreOptions) {
-    this.file = opts.dataDir ? join(opts.dataDir, 'alarms.json') : null;
-    this.journalFile = opts.dataDir ? join(opts.dataDir, 'alarms.journal') : null;
     this.now = opts.now ?? Date.now;
-    this.load();
-  }
-
-  private load(): void {
-    this.loadSnapshot();
-    this.replayJournal();
-  }
-
-  /** Journal lines after the snapshot: each the record as it was after a change (by id). */
-  private replayJournal(): void {
-    if (!this.journalFile) return;
-    let text: string;
-    try {
-      text = readFileSync(this.journalFile, 'utf8');
-    } catch {
-      return; // no journal
-    }
-    const after = this.journalSeq;
-    let replayed = 0;
-    for (const line of text.split('\n')) {
-      if (!line.trim()) continue;
-      let parsed: z.infer<typeof journalLineSchema> | null = null;
-      try {
-        const r = journalLineSchema.safeParse(JSON.parse(line));
-        if (r.success) parsed = r.data;
-      } catch {
-        parsed = null; // a line cut short by a crash: the ones before it stand
-      }
-      if (!parsed) continue;
-      this.journalSeq = Math.max(this.journalSeq, parsed.v);
-      if (parsed.v <= after) continue;
-      const rec = parsed.r;
-      const i = this.records.findIndex((x) => x.id === rec.id);
-      if (i >= 0) this.records[i] = rec;
-      else this.records.push(rec);
-      this.seq = Math.max(this.seq, Number(rec.id) || 0);
-      replayed++;
-    }
-    if (replayed > 0) {
-      this.opts.log.info('alarm records recovered from the journal', { count: replayed });
+    this.files = new AlarmFiles(opts.dataDir, opts.log, this.now, () => ({
+      seq: this.seq,
+      records: this.records,
+    }));
+    const loaded = this.files.load();
+    this.records = loaded.records;
+    this.seq = loaded.seq;
+    if (loaded.replayed > 0) {
       this.version++;
-      this.scheduleWrite();
+      this.files.scheduleWrite();
     }
-  }
-
-  private loadSnapshot(): void {
-    if (!this.file) return;
-    let text: string;
-    try {
-      text = readFileSync(this.file, 'utf8');
-    } catch {
-      return; // no file yet
-    }
-    let parsed: z.infer<typeof fileSchema> | null = null;
-    try {
-      const r = fileSchema.safeParse(JSON.parse(text));
-      if (r.success) parsed = r.data;
-    } catch {
-      parsed = null;
-    }
-    if (!parsed) {
-      // Never lose it: set aside for a person to look at, and start a new list.
-      const aside = `${this.file}.unreadable-${this.now()}`;
-      try {
-        renameSync(this.file, aside);
-      } catch {
-        /* the next write replaces it */
-      }
-      this.opts.log.error('the alarm list could not be read; it was set aside and a new one started', {
-        file: aside,
-      });
-      return;
-    }
-    this.records = parsed.records;
-    this.seq = Math.max(parsed.seq, ...this.records.map((r) => Number(r.id) || 0));
-    this.journalSeq = parsed.journal ?? 0;
   }
 
   /** What the watch learnt about a machine: open, update and clear its records. */
@@ -303,37 +201,11 @@ export class AlarmCentre {
     if (this.dirty.size > 0) {
       const records = [...this.dirty];
       this.dirty.clear();
-      this.appendJournal(records);
+      this.files.append(records);
     }
     const events = this.pending.splice(0);
     for (const [event, r] of events) this.opts.onChange?.(event, r);
   }
-
-  private appendJournal(records: AlarmRecord[]): void {
-    const file = this.journalFile;
-    if (!file) return;
-    const lines = records.map((r) => `${JSON.stringify({ v: ++this.journalSeq, r })}\n`).join('');
-    let fd: number | null = null;
-    try {
-      mkdirSync(join(file, '..'), { recursive: true });
-      fd = openSync(file, 'a', 0o600);
-      writeSync(fd, lines);
-      fsyncSync(fd);
-    } catch (e) {
-      this.opts.log.error('cannot write the alarm journal: an alarm may be lost if the server stops now', {
-        file,
-        error: String(e),
-      });
-    } finally {
-      if (fd !== null) closeSync(fd);
-    }
-    if (!this.journalDirSynced) {
-      // The journal's own directory entry, once: a new file survives a power cut too.
-      this.journalDirSynced = true;
-      syncDir(join(file, '..'));
-    }
-  }
-  private journalDirSynced = false;
 
   /**
    * Acknowledges a machine's alarm by its key: the open record of that key (an alarm the watch
@@ -376,7 +248,7 @@ export class AlarmCentre {
   private changed(): void {
     this.version++;
     this.prune();
-    this.scheduleWrite();
+    this.files.scheduleWrite();
   }
 
   /** Bounded: cleared records past `keepMs`, then the oldest acknowledged-and-cleared ones. */
@@ -399,87 +271,14 @@ export class AlarmCentre {
     if (this.records.length > max) this.records = this.records.slice(this.records.length - max);
   }
 
-  private serialise(): string {
-    return JSON.stringify({ version: 1, seq: this.seq, journal: this.journalSeq, records: this.records });
-  }
-
-  /** After a snapshot holding journal line `upTo` is in place: the journal is emptied when it holds nothing newer. */
-  private journalCovered(upTo: number): void {
-    if (!this.journalFile || this.journalSeq !== upTo) return;
-    try {
-      truncateSync(this.journalFile, 0);
-    } catch {
-      /* no journal yet */
-    }
-  }
-
-  private scheduleWrite(): void {
-    if (!this.file || this.writeTimer) return;
-    this.writeTimer = setTimeout(() => {
-      this.writeTimer = null;
-      this.writing = this.writing.then(() => this.writeNow());
-    }, 200);
-    this.writeTimer.unref?.();
-  }
-
-  /** Written to a temporary file, fsynced and renamed: a crash leaves the old list or the new one. */
-  private async writeNow(): Promise<void> {
-    const file = this.file;
-    if (!file) return;
-    const tmp = `${file}.tmp`;
-    try {
-      mkdirSync(join(file, '..'), { recursive: true });
-      // The list and the journal line it holds, taken together.
-      const text = this.serialise();
-      const upTo = this.journalSeq;
-      const fh = await open(tmp, 'w', 0o600);
-      try {
-        await fh.writeFile(text);
-        await fh.sync();
-      } finally {
-        await fh.close();
-      }
-      await rename(tmp, file);
-      syncDir(join(file, '..'));
-      this.journalCovered(upTo);
-    } catch (e) {
-      this.opts.log.error('cannot write the alarm list', { file, error: String(e) });
-    }
-  }
-
   /** Writes what is pending now (shutdown). */
-  async close(): Promise<void> {
-    if (this.writeTimer) {
-      clearTimeout(this.writeTimer);
-      this.writeTimer = null;
-      this.writing = this.writing.then(() => this.writeNow());
-    }
-    await this.writing;
+  close(): Promise<void> {
+    return this.files.close();
   }
 
   /** For a synchronous shutdown path: writes at once. */
   flushSync(): void {
-    if (!this.file || !this.writeTimer) return;
-    clearTimeout(this.writeTimer);
-    this.writeTimer = null;
-    const tmp = `${this.file}.tmp`;
-    const upTo = this.journalSeq;
-    writeFileSync(tmp, this.serialise(), { mode: 0o600 });
-    renameSync(tmp, this.file);
-    this.journalCovered(upTo);
-  }
-}
-
-/** fsync of a directory (its entries: a renamed or new file); not every platform allows it. */
-function syncDir(dir: string): void {
-  let fd: number | null = null;
-  try {
-    fd = openSync(dir, 'r');
-    fsyncSync(fd);
-  } catch {
-    /* Windows cannot open a directory: the rename is as durable as the platform makes it */
-  } finally {
-    if (fd !== null) closeSync(fd);
+    this.files.flushSync();
   }
 }
 

@@ -13,22 +13,23 @@ import {
   type FSWatcher,
   type Stats,
 } from 'node:fs';
-import os from 'node:os';
 import path from 'node:path';
 import { randomBytes } from 'node:crypto';
 import bcrypt from 'bcryptjs';
 import { z } from 'zod';
 import { MACHINE_ID, ROLES, type Role } from '../src/fleet/types';
 import { loggerFromEnv, type Logger } from './log';
+import { withFileLock, type FileLockOptions } from './users-lock';
+
+// The lock around changes (`<users file>.lock`); the gateway only reads the users file, a writer
+// takes the lock through `updateUsers`.
+export { UsersFileLockedError, withFileLock, type FileLockOptions } from './users-lock';
 
 /**
  * The users file (`SHOPDECK_USERS`, else `users.json` in the data folder). With no users file
- * the console runs open. Passwords and PINs are bcrypt hashes; the file is written 0600.
- *
- * ```json
- * { "users": [ { "name": "ana", "role": "operator", "machines": ["laser-1"],
- *                "passwordHash": "$2b$12$…", "pinHash": "$2b$12$…" } ] }
- * ```
+ * the console runs open. Passwords and PINs are bcrypt hashes; the file is written 0600:
+ * `{ "users": [ { "name": "ana", "role": "operator", "machines": ["laser-1"],
+ *   "passwordHash": "$2b$12$…", "pinHash": "$2b$12$…" } ] }`
  */
 
 export const USER_NAME = /^[A-Za-z0-9._@-]{1,64}$/;
@@ -143,167 +144,7 @@ export function writeUsers(file: string, users: readonly UserRecord[]): void {
   }
 }
 
-// ---------------------------------------------------------------- the lock around changes
-
-/**
- * The users file is changed by `npm run user` (each run its own process; several may run at once:
- * a script adding a crew, two admins). Without a lock each reads the file, adds its user and
- * writes the whole list back, and the last write wins: the others' users are gone although each
- * said "added". So every change is a read-modify-write under an exclusive lock file,
- * `<users file>.lock`, created with O_EXCL (`open(…, 'wx')`: exactly one process can create it;
- * this works on every local file system Node runs on, with no dependency; proper-lockfile would
- * do the same with mkdir and a timer that keeps the lock's mtime fresh, which a lock held for
- * milliseconds does not need). The lock holds `{pid, host, at, nonce}`.
- *
- * Stale locks (a process killed while holding one): a lock is broken when its process is gone
- * (same host, `kill(pid, 0)` says no such process), when it is older than `staleMs` (default 30 s:
- * it is held only for the read, the change and the write, never while a password is typed), or
- * when it is empty or unreadable and older than 2 s (killed between creating and writing it).
- * Breaking takes a second O_EXCL file (`.lock.break`) and checks the lock is still the same one
- * it judged stale, so two processes breaking at once cannot remove each other's fresh lock.
- * A holder only ever removes its own lock (same nonce).
- *
- * The gateway itself never writes the users file (it only reads it, and re-reads it when it
- * changes); a writer that did would take this same lock through `updateUsers`.
- */
-
-export class UsersFileLockedError extends Error {
-  constructor(
-    readonly lockFile: string,
-    holder: string,
-  ) {
-    super(
-      `the users file is locked by ${holder} (${lockFile}): another "npm run user" is changing it. ` +
-        `Try again; if none is running, delete ${lockFile}`,
-    );
-    this.name = 'UsersFileLockedError';
-  }
-}
-
-export interface FileLockOptions {
-  /** Give up waiting for the lock after this long (default 10 s). */
-  timeoutMs?: number;
-  /** A lock older than this is stale whoever holds it (default 30 s). */
-  staleMs?: number;
-  /** Between tries (default 25 ms, plus up to as much again at random). */
-  retryMs?: number;
-}
-
-interface LockInfo {
-  content: string;
-  ageMs: number;
-  pid: number | null;
-  host: string | null;
-}
-
-function readLock(lock: string): LockInfo | null {
-  try {
-    const st = statSync(lock);
-    const content = readFileSync(lock, 'utf8');
-    let pid: number | null = null;
-    let host: string | null = null;
-    try {
-      const v = JSON.parse(content) as { pid?: unknown; host?: unknown };
-      if (typeof v.pid === 'number' && Number.isInteger(v.pid) && v.pid > 0) pid = v.pid;
-      if (typeof v.host === 'string') host = v.host;
-    } catch {
-      // empty or torn: judged by its age
-    }
-    return { content, ageMs: Date.now() - st.mtimeMs, pid, host };
-  } catch (e) {
-    if ((e as NodeJS.ErrnoException).code === 'ENOENT') return null;
-    throw e;
-  }
-}
-
-function processGone(pid: number): boolean {
-  try {
-    process.kill(pid, 0);
-    return false;
-  } catch (e) {
-    return (e as NodeJS.ErrnoException).code === 'ESRCH';
-  }
-}
-
-function isStale(l: LockInfo, staleMs: number): boolean {
-  if (l.ageMs > staleMs) return true;
-  if (l.pid === null) return l.ageMs > 2000;
-  return l.host === os.hostname() && l.pid !== process.pid && processGone(l.pid);
-}
-
-/** Removes `lock` if it is (still) the stale one seen; true when the caller should try again at once. */
-function breakStale(lock: string, seen: LockInfo, staleMs: number): boolean {
-  const breaker = `${lock}.break`;
-  try {
-    closeSync(openSync(breaker, 'wx', 0o600));
-  } catch (e) {
-    if ((e as NodeJS.ErrnoException).code !== 'EEXIST') throw e;
-    // Someone else is breaking it; a breaker left by a killed process goes after 10 s.
-    try {
-      if (Date.now() - statSync(breaker).mtimeMs > 10_000) unlinkSync(breaker);
-    } catch {
-      // gone meanwhile
-    }
-    return false;
-  }
-  try {
-    const again = readLock(lock);
-    if (again && again.content === seen.content && isStale(again, staleMs)) unlinkSync(lock);
-    return true;
-  } finally {
-    unlinkSync(breaker);
-  }
-}
-
-const pause = (ms: number): Promise<void> => new Promise((r) => setTimeout(r, ms));
-
-/** Runs `fn` holding the exclusive lock of `file` (`<file>.lock`); see above. */
-export async function withFileLock<T>(
-  file: string,
-  fn: () => T | Promise<T>,
-  opts: FileLockOptions = {},
-): Promise<T> {
-  const timeoutMs = opts.timeoutMs ?? 10_000;
-  const staleMs = opts.staleMs ?? 30_000;
-  const retryMs = opts.retryMs ?? 25;
-  const lock = `${file}.lock`;
-  mkdirSync(path.dirname(file), { recursive: true });
-  const mine = JSON.stringify({
-    pid: process.pid,
-    host: os.hostname(),
-    at: new Date().toISOString(),
-    nonce: randomBytes(8).toString('hex'),
-  });
-  const deadline = Date.now() + timeoutMs;
-  for (;;) {
-    try {
-      const fd = openSync(lock, 'wx', 0o600);
-      try {
-        writeSync(fd, mine);
-      } finally {
-        closeSync(fd);
-      }
-      break;
-    } catch (e) {
-      if ((e as NodeJS.ErrnoException).code !== 'EEXIST') throw e;
-    }
-    const held = readLock(lock);
-    if (!held) continue; // released meanwhile
-    if (isStale(held, staleMs) && breakStale(lock, held, staleMs)) continue;
-    if (Date.now() >= deadline) {
-      const who =
-        held.pid !== null ? `process ${held.pid}${held.host ? ` on ${held.host}` : ''}` : 'a process';
-      throw new UsersFileLockedError(lock, who);
-    }
-    await pause(retryMs + Math.random() * retryMs);
-  }
-  try {
-    return await fn();
-  } finally {
-    // Only our own lock: never one another process made after ours was (wrongly) broken.
-    if (readLock(lock)?.content === mine) unlinkSync(lock);
-  }
-}
+// ---------------------------------------------------------------- changes, under the lock
 
 /**
  * One change of the users file, never lost to another at the same time: under the lock, reads

@@ -3,7 +3,7 @@ import type { CsvValue } from '../../src/ui/csv';
 import type { Retention, Shift } from '../settings';
 import type { HistoryReader } from './reader';
 import { localDay, parseDate, shiftWindow } from './shifts';
-import { OUTCOMES, STATES, type JobCounts, type JobRow, type Outcome, type StateSeconds } from './store';
+import { OUTCOMES, STATES, type JobCounts, type JobRow, type Outcome, type StateSeconds } from './model';
 
 /**
  * The answers of `GET /api/history/*` (documented in gateway/README.md), computed in a read worker

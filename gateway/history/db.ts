@@ -13,7 +13,7 @@ import Database from 'better-sqlite3';
  *   proxying of machine commands for an fsync (tens of ms on a shop PC's SD card or eMMC). In WAL
  *   mode NORMAL never corrupts the file; a process crash loses nothing committed; a power cut can
  *   lose the commits since the last checkpoint, and the store checkpoints every minute
- *   (`CHECKPOINT_EVERY_MS` in store.ts), so at most about a minute of history.
+ *   (`CHECKPOINT_EVERY_MS` in recorder.ts), so at most about a minute of history.
  * - Versioned migrations: `PRAGMA user_version` is the number of migrations applied; each one
  *   runs in its own transaction together with the version bump, so a file is always at exactly
  *   one version. A file from a newer Shopdeck (a higher version) is refused, never changed.

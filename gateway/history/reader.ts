@@ -14,7 +14,7 @@ import {
   type StateSeconds,
   type StopReason,
   type TouchcutDay,
-} from './store';
+} from './model';
 
 /**
  * The history's queries (what `/api/history/*` answers), apart from the recording: the store
