@@ -144,7 +144,7 @@ export function createSocketlessReads(ctx: GatewayContext, sendRead: SendRead) {
   return { watchRead, socketRead };
 }
 
-/** What a read sent over a page's read socket comes to (proxy-http.ts `socketRead`). */
+/** What a read sent over a page's read socket comes to (`socketRead`). */
 export type SocketReadAnswer =
   | { status: number; headers: Record<string, string | string[]>; body: Buffer }
   /**
