@@ -1,8 +1,6 @@
-import type { TLSSocket } from 'node:tls';
-import { CertificateChanged, connectPinned, PinFileError } from './tls-pin';
 import { type IncomingMessage } from 'node:http';
 import type { Duplex } from 'node:stream';
-import { WebSocket, WebSocketServer, type RawData } from 'ws';
+import { WebSocket, WebSocketServer } from 'ws';
 import type { AccessDecision } from '../src/fleet/access';
 import type { Who } from './context';
 import type { MachineEntry } from './machines';
@@ -13,16 +11,16 @@ import { clientAddress, forwardRequestHeaders, rejectUpgrade } from './http-util
 import { redact } from './machines';
 import { auditTarget, splitTarget } from './paths';
 import { bridgeSimSocket } from './sim-server';
-import { holdSocket, type HeldSocket } from './held-session';
+import { holdSocket } from './held-session';
 import type { SharedStreamDecl } from '../src/fleet/contract';
-import { simUpstream, StreamHub, StreamHubs, streamQuery, wsUpstream } from './streams';
+import { streamQuery } from './streams';
 import type { GatewayContext } from './context';
-import { unreachableReason } from './log';
+import { createSocketOpener } from './controller-socket';
+import { createStreamJoin } from './stream-join';
 
 export function createWsProxy(ctx: GatewayContext) {
   const {
     opts,
-    timeoutMs,
     byId,
     secretsOf,
     openSockets,
@@ -32,14 +30,14 @@ export function createWsProxy(ctx: GatewayContext) {
     classify,
     authorize,
     simulatorFor,
-    state,
     liveSockets,
     streams,
     patternsFor,
-    pins,
-    reachability,
     hintsOf,
   } = ctx;
+  // Controller sockets (controller-socket.ts) and shared streams (stream-join.ts).
+  const openControllerSocket = createSocketOpener(ctx);
+  const { joinHub, holdStream } = createStreamJoin(ctx, openControllerSocket);
   /** Bridged (one-to-one) controller sockets open now, per machine (`bridgedSockets.maxPerMachine`). */
   const bridgedOpen = new Map<string, number>();
   /** Counts a bridged socket of `id` in; the returned release counts it out (once). */
@@ -301,201 +299,6 @@ export function createWsProxy(ctx: GatewayContext) {
     };
     client.once('close', unregister);
     return unregister;
-  }
-
-  type OpenedSocket =
-    | {
-        ok: true;
-        upstream: WebSocket;
-        /** Frames that came before anyone listened (bounded: the socket pauses). */
-        early: Array<{ data: RawData; isBinary: boolean }>;
-        earlyClose: () => { code: number; reason: string } | null;
-        stopCollecting: () => void;
-      }
-    | { ok: false; status: number; error: string; gateway?: boolean };
-
-  /**
-   * Opens the controller's WebSocket for `path?query` (the held session's key and the family's
-   * secrets added, the certificate checked first for wss). Resolves once it is open, or with
-   * the refusal for the browser (words without the controller's address or secrets).
-   */
-  async function openControllerSocket(
-    m: MachineEntry,
-    path: string,
-    parsed: URLSearchParams,
-    rawQuery: string,
-    headers: Record<string, string>,
-    offered: string[],
-    held: HeldSocket | null,
-  ): Promise<OpenedSocket> {
-    const fam = opts.families[m.kind];
-    let baseUrl: string;
-    if (m.wsUrl) {
-      baseUrl = `${m.wsUrl.protocol}//${m.wsUrl.host}${m.wsUrl.pathname.replace(/\/+$/, '')}`;
-    } else if (m.url) {
-      const port = fam?.gateway?.defaultWsPort;
-      const host = port ? `${m.url.hostname}:${port}` : m.url.host;
-      baseUrl = `${m.url.protocol === 'https:' ? 'wss:' : 'ws:'}//${host}${m.url.pathname.replace(/\/+$/, '')}`;
-    } else {
-      return { ok: false, status: 502, error: `machine ${m.id} has no url` };
-    }
-    const query = new URLSearchParams(parsed);
-    const before = query.toString();
-    held?.apply(query, headers); // held session (held-session.ts): the gateway's key, not the browser's
-    fam?.gateway?.injectSecrets?.({ method: 'GET', path, headers, query }, m.secrets);
-    const qs = query.toString() === before ? rawQuery : query.toString();
-    const target = baseUrl + path + (qs ? `?${qs}` : '');
-    const forms = secretsOf.get(m.id) ?? [];
-    let tlsSocket: TLSSocket | null = null;
-    if (target.startsWith('wss:')) {
-      // The certificate is checked before the handshake (and any secret in it) is sent.
-      try {
-        tlsSocket = await connectPinned({ machine: m, url: new URL(target), store: pins, timeoutMs });
-      } catch (e) {
-        const msg =
-          e instanceof CertificateChanged || e instanceof PinFileError ? e.message : `cannot reach ${m.name}`;
-        const reason = unreachableReason(e as Error & { code?: string }, false);
-        if (reason)
-          reachability.down(m.id, reason, redact(e instanceof Error ? e.message : String(e), forms));
-        return { ok: false, status: 502, error: msg, gateway: true };
-      }
-    }
-    const pinned = tlsSocket;
-    const upstream = new WebSocket(target, offered, {
-      headers,
-      ...(pinned ? { createConnection: () => pinned } : {}),
-      handshakeTimeout: timeoutMs,
-      perMessageDeflate: false,
-      followRedirects: false,
-      maxPayload: DEFAULT_BRIDGE_LIMITS.maxUpstreamFrame,
-    });
-    held?.track(upstream); // held session: open while this socket is
-    openSockets.add(upstream);
-    upstream.once('close', () => openSockets.delete(upstream));
-    const early: Array<{ data: RawData; isBinary: boolean }> = [];
-    // Frames that arrive before the browser's socket is accepted: bounded like the rest.
-    let earlyBytes = 0;
-    const collect = (data: RawData, isBinary: boolean): void => {
-      earlyBytes += Array.isArray(data) ? data.reduce((n, d) => n + d.length, 0) : data.byteLength;
-      if (earlyBytes > DEFAULT_BRIDGE_LIMITS.highWaterBytes) upstream.pause();
-      early.push({ data, isBinary });
-    };
-    upstream.on('message', collect);
-    let earlyClose: { code: number; reason: string } | null = null;
-    upstream.once('close', (code: number, reason: Buffer) => {
-      earlyClose = { code, reason: reason.toString('utf8').slice(0, 120) };
-    });
-    return new Promise<OpenedSocket>((resolve) => {
-      let settled = false;
-      const fail = (status: number, error: string): void => {
-        if (settled) return;
-        settled = true;
-        openSockets.delete(upstream);
-        resolve({ ok: false, status, error: redact(error, forms) });
-      };
-      upstream.once('unexpected-response', (_r, resp) => {
-        reachability.up(m.id); // it answered, with something else than a WebSocket
-        upstream.removeAllListeners('error');
-        upstream.on('error', () => undefined);
-        fail(502, `the controller refused the WebSocket (HTTP ${resp.statusCode ?? '?'})`);
-        resp.resume();
-        upstream.terminate();
-      });
-      upstream.on('error', (e) => {
-        // After the handshake, errors are the bridge's or the hub's business (they close both
-        // sides): never write an HTTP answer on a socket that may already be upgraded.
-        if (!settled && upstream.readyState !== WebSocket.OPEN) {
-          const timeout = /timed out|timeout/i.test(e.message);
-          const reason = state.closed ? null : unreachableReason(e as Error & { code?: string }, false);
-          if (reason) reachability.down(m.id, reason, redact(e.message, forms));
-          fail(timeout ? 504 : 502, `cannot open the controller's WebSocket: ${e.message}`);
-        }
-      });
-      upstream.once('open', () => {
-        if (settled) return;
-        settled = true;
-        reachability.up(m.id);
-        resolve({
-          ok: true,
-          upstream,
-          early,
-          earlyClose: () => earlyClose,
-          stopCollecting: () => upstream.off('message', collect),
-        });
-      });
-    });
-  }
-
-  /**
-   * The machine's shared hub for this stream: the open one, or a new one opened once. It is named
-   * by the declared path and the declared query (`streamQuery`), never by the browser's spelling,
-   * and that is what goes upstream: one controller socket per machine and declared stream.
-   */
-  async function joinHub(
-    m: MachineEntry,
-    decl: SharedStreamDecl,
-    query: string,
-    held: HeldSocket | null,
-  ): Promise<StreamHub | { status: number; error: string }> {
-    const path = decl.path;
-    // Filtered here too, whatever the caller passed (streamQuery is idempotent): the key and the
-    // upstream URL never hold a browser's own query string (one upstream per declared stream).
-    const rawQuery = streamQuery(decl, query);
-    if (rawQuery instanceof Error) return { status: 400, error: rawQuery.message };
-    const key = StreamHubs.key(m.id, path, rawQuery);
-    return streams.get(key, async () => {
-      const patterns = patternsFor(m);
-      const hubOpts = {
-        toClient: patterns.length
-          ? (data: Buffer, isBinary: boolean) => redactFrame(data, isBinary, patterns)
-          : undefined,
-        warn: (msg: string) => ctx.log.warn(`${m.id}: ${msg}`, { machine: m.id }),
-        onEnd: () => streams.forget(key, hub),
-      };
-      let hub: StreamHub;
-      if (m.simulated) {
-        const sim = simulatorFor(m);
-        if (!sim) return { status: 503, error: `no simulator for ${m.kind}` };
-        const target = held ? held.target(path, rawQuery) : path + (rawQuery ? `?${rawQuery}` : '');
-        const up = simUpstream(sim, target);
-        if (!up) return { status: 404, error: 'no socket here' };
-        held?.track(up.events);
-        hub = new StreamHub(decl, up.socket, hubOpts);
-        return { hub };
-      }
-      const o = await openControllerSocket(m, path, new URLSearchParams(rawQuery), rawQuery, {}, [], held);
-      if (!o.ok) return { status: o.status, error: o.error };
-      o.stopCollecting();
-      hub = new StreamHub(decl, wsUpstream(o.upstream, o.early), hubOpts);
-      o.upstream.resume();
-      return { hub };
-    });
-  }
-
-  /**
-   * The gateway's watch holds a machine's shared stream open without a viewer (watch.ts) and
-   * reads its frames. Throws when the stream cannot be opened now.
-   */
-  async function holdStream(
-    m: MachineEntry,
-    path: string,
-    onFrame: (frame: string) => void,
-    onEnd: () => void,
-  ): Promise<() => void> {
-    const decl = hintsOf(m).sharing?.streams?.find((d) => d.matches(path));
-    if (!decl) throw new Error(`no shared stream at ${path}`);
-    const held = await holdSocket(ctx, m);
-    if (held && 'status' in held) throw new Error(String(held.body.error));
-    const r = await joinHub(m, decl, '', held);
-    if ('status' in r) throw new Error(r.error);
-    const release = r.hold();
-    const offFrame = r.onFrame(onFrame);
-    const offEnd = r.onEnded(onEnd);
-    return () => {
-      offFrame();
-      offEnd();
-      release();
-    };
   }
 
   return { upgradeMachine, holdStream };

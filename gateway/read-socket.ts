@@ -15,7 +15,7 @@ import { refuseUpgrade } from './proxy-ws';
  * HTTP, under 2 % as socket messages), and a fleet page of 100 machines makes about 65 a second.
  *
  * Only reads: each message is one GET of `/machines/<id>/…`, checked as that GET over HTTP would be
- * (proxy-http.ts `socketRead`: the user's session now, the family's classification, the role) and
+ * (proxy-reads.ts `socketRead`: the user's session now, the family's classification, the role) and
  * sent the same way (held session, secrets, one upstream per machine, shared reads). A request the
  * family classifies as a command is not sent: the answer says `fallback` and the page sends it
  * over HTTP, where a command is proven (X-Shopdeck), given its deadline and audited. Nothing is

@@ -39,7 +39,7 @@ import { normalizeFingerprint, type MachineEntry } from './machines';
  *
  * One `PinStore` per gateway: `new PinStore(opts.dataDir)`.
  *
- * HTTP (`proxy-http.ts`, `forward()` when `target.protocol === 'https:'`): connect first, then
+ * HTTP (`proxy-forward.ts`, `forward()` when `target.protocol === 'https:'`): connect first, then
  * hand the verified socket to `http.request` (plain `http.request`: the socket already speaks
  * TLS; no `agent`, no `protocol`; one socket per request, the request sends `Connection: close`):
  *
@@ -52,7 +52,7 @@ import { normalizeFingerprint, type MachineEntry } from './machines';
  *   A rejection (`CertificateChanged`, `PinFileError`, a network error) becomes the 502 with
  *   its message and an audited error, as "cannot reach the controller" does now.
  *
- * WebSocket (`proxy-ws.ts`, when the upstream URL is `wss:`): same, with the `ws` client:
+ * WebSocket (`controller-socket.ts`, when the upstream URL is `wss:`): same, with the `ws` client:
  *
  *     const socket = await connectPinned({ machine: m, url: new URL(target), store, timeoutMs, onTrust });
  *     const upstream = new WebSocket(target, offered, { headers, createConnection: () => socket, … });
