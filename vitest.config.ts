@@ -6,7 +6,7 @@ import { defineConfig } from 'vitest/config';
  * Four projects (issue 34): `unit` (the page's code and the repository's own checks), `integration`
  * (the gateway and the server on real sockets, the scripts), `faults` (the fault matrix, run on
  * its own: it drives every family through every fault) and `bundle` (the size check and the
- * bundle guard, after `npm run build`, and the production build's contents). `npm test` runs
+ * bundle guard, after `npm run build`, and the packaging checks). `npm test` runs
  * unit and integration in one run, then the matrix, then the bundle after the build (package.json).
  *
  * Workers: Vitest's default is one fewer than the cores, one on a 2-core machine; most of these
@@ -32,6 +32,16 @@ const SRC_ON_SOCKETS = [
   'src/controllers/duet/watch-standalone.test.ts',
 ];
 
+/**
+ * Packaging checks (issue 34): each makes its own production build or install in a temporary
+ * folder (minutes of CPU on 2 cores). They run in `bundle`, after the build.
+ */
+const PACKAGING = [
+  'tests/unit/bundle-content.test.ts',
+  'gateway/dist-secrets.test.ts',
+  'server/omit-dev.test.ts',
+];
+
 export default defineConfig({
   // The page's zod/mini, configured as in the browser (vite.config.ts, src/zod-jitless.ts).
   resolve: {
@@ -51,7 +61,7 @@ export default defineConfig({
         test: {
           name: 'unit',
           include: ['src/**/*.test.{ts,tsx}', 'tests/unit/**/*.test.{ts,tsx}'],
-          exclude: [...SRC_ON_SOCKETS, 'tests/unit/bundle-content.test.ts'],
+          exclude: [...SRC_ON_SOCKETS, ...PACKAGING],
         },
       },
       {
@@ -65,8 +75,9 @@ export default defineConfig({
             'tests/faults/**/*.test.ts',
             ...SRC_ON_SOCKETS,
           ],
-          // The bundle guard reads dist/: it runs in `bundle`, after the build.
-          exclude: ['tests/faults/matrix.test.ts', 'gateway/bundle.test.ts'],
+          // The bundle guard reads dist/: it runs in `bundle`, after the build; so do the other
+          // packaging checks (their own build, `npm ci --omit=dev`).
+          exclude: ['tests/faults/matrix.test.ts', 'gateway/bundle.test.ts', ...PACKAGING],
         },
       },
       { extends: true, test: { name: 'faults', include: ['tests/faults/matrix.test.ts'] } },
@@ -74,13 +85,7 @@ export default defineConfig({
         extends: true,
         test: {
           name: 'bundle',
-          // bundle-content makes its own production build (in a temporary folder): a packaging
-          // check, a minute of CPU, so not in `unit`.
-          include: [
-            'tests/bundle/**/*.test.ts',
-            'gateway/bundle.test.ts',
-            'tests/unit/bundle-content.test.ts',
-          ],
+          include: ['tests/bundle/**/*.test.ts', 'gateway/bundle.test.ts', ...PACKAGING],
         },
       },
     ],
