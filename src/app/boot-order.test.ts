@@ -1,5 +1,5 @@
 // @vitest-environment happy-dom
-import { afterEach, describe, expect, it, vi } from 'vitest';
+import { afterEach, beforeEach, describe, expect, it, vi } from 'vitest';
 import { controllerLoaders } from '../controllers';
 import type { ControllerModule, MachineSession, SessionContext } from '../fleet/contract';
 import type { MachineKind } from '../fleet/types';
@@ -67,11 +67,16 @@ async function freshPage(path: string, machines: readonly Listed[]) {
 }
 
 afterEach(() => {
+  vi.useRealTimers();
   vi.unstubAllGlobals();
   vi.restoreAllMocks();
 });
 
 describe('boot', () => {
+  // The seconds the page waits pass on a fake clock (vi.waitFor advances it as it polls).
+  beforeEach(() => {
+    vi.useFakeTimers({ toFake: ['setTimeout', 'clearTimeout', 'Date'] });
+  });
   it('loads the family of the machine in view first, the others once it shows its data', async () => {
     history.replaceState(null, '', '/m/laser/files');
     const order: string[] = [];
@@ -92,16 +97,19 @@ describe('boot', () => {
     await boot();
     await vi.waitFor(() => expect(order).toEqual(['xtool']));
     // Still only the laser's family while it loads.
-    await new Promise((r) => setTimeout(r, 50));
+    await vi.advanceTimersByTimeAsync(50);
     expect(order).toEqual(['xtool']);
     (releaseXtool as (() => void) | null)?.();
     await vi.waitFor(() => expect(laserStarted).not.toBeNull());
     // The laser's session runs but has no answer yet: the other families wait (they would have
     // started 1.5 s after the laser's code loaded, when the browser was idle).
-    await new Promise((r) => setTimeout(r, 2000));
+    await vi.advanceTimersByTimeAsync(2000);
     expect(order).toEqual(['xtool']);
     (laserStarted as SessionContext | null)?.snapshot.setState({ link: 'online' });
-    await vi.waitFor(() => expect(order).toEqual(['xtool', 'duet', 'g2core']), { timeout: 3000 });
+    // When the browser is idle after it (happy-dom has no idle callback: whenIdle's 1.5 s), well
+    // before the 6 s at which they would start anyway.
+    await vi.advanceTimersByTimeAsync(1500);
+    expect(order).toEqual(['xtool', 'duet', 'g2core']);
   });
 
   it('a kiosk tablet runs its own machine only; the others start when it leaves the kiosk', async () => {
@@ -121,11 +129,11 @@ describe('boot', () => {
     // It shows its data, the browser is idle, seconds pass: still its machine alone (not even
     // the other laser of its family).
     getRuntime('kiosk-laser')?.snapshot.setState({ link: 'online' });
-    await new Promise((r) => setTimeout(r, 3500));
+    await vi.advanceTimersByTimeAsync(3500);
     expect(sessionsStarted).toEqual(['kiosk-laser']);
     const { navigate } = await import('./router');
     navigate('/m/kiosk-laser?kiosk&x=1'); // still the kiosk
-    await new Promise((r) => setTimeout(r, 50));
+    await vi.advanceTimersByTimeAsync(50);
     expect(sessionsStarted).toEqual(['kiosk-laser']);
     navigate('/');
     await vi.waitFor(() =>
@@ -142,13 +150,13 @@ describe('boot', () => {
     ]);
     await boot();
     // Nothing of the family before the kiosk has painted the server's reading.
-    await new Promise((r) => setTimeout(r, 1000));
+    await vi.advanceTimersByTimeAsync(1000);
     expect(order).toEqual([]);
     firstScreenShown();
     // At once after it (no idle wait), and its machine's family only.
-    await new Promise((r) => setTimeout(r, 0));
+    await vi.advanceTimersByTimeAsync(0);
     expect(order).toEqual(['xtool']);
-    await new Promise((r) => setTimeout(r, 3000));
+    await vi.advanceTimersByTimeAsync(3000);
     expect(order).toEqual(['xtool']);
   });
 
@@ -158,8 +166,9 @@ describe('boot', () => {
       { id: 'ks-mill', name: 'Mill', kind: 'g2core', watch },
     ]);
     await boot();
-    await new Promise((r) => setTimeout(r, 1000));
+    await vi.advanceTimersByTimeAsync(1000);
     expect(order).toEqual([]);
+    await vi.advanceTimersByTimeAsync(2000);
     await vi.waitFor(() => expect(order).toEqual(['g2core']), { timeout: 3000 });
   });
 
@@ -189,9 +198,10 @@ describe('boot', () => {
     expect(warned('fs-table')).toBe(0);
     // No family's code before the first screen is up (longer than an idle wait, shorter than the
     // few seconds after which the machines start anyway).
-    await new Promise((r) => setTimeout(r, 2000));
+    await vi.advanceTimersByTimeAsync(2000);
     expect(order).toEqual([]);
     firstScreenShown();
+    await vi.advanceTimersByTimeAsync(1500);
     await vi.waitFor(() => expect([...order].sort()).toEqual(['prunt', 'touchcut']), { timeout: 3000 });
   });
 });
