@@ -1,4 +1,4 @@
-import { auditQueryFrom, streamCsv } from '../audit';
+import { auditQueryFrom, streamCsv } from '../audit-csv';
 import type { GatewayContext } from '../context';
 import { sendJson } from '../http-util';
 import type { ApiRoute, GuardedRoute } from './route';
