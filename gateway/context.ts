@@ -102,8 +102,7 @@ export function createContext(opts: GatewayOptions): GatewayContext {
   const secretsOf = new Map(config.machines.map((m) => [m.id, secretForms(m.secrets)]));
   const allSecrets = [...new Set(config.machines.flatMap((m) => secretForms(m.secrets)))];
   const sims = new Map<string, FaultySimulator>();
-  const access = createMachineAccess(opts.families, (p, id) => mayUseMachine(p, id));
-  const { hintsOf } = access;
+  const { hintsOf, classify, authorize } = createMachineAccess(opts.families);
   const openSockets = new Set<WebSocket>();
   const pending = new Set<http.ClientRequest>();
   const httpAgent = new http.Agent({ keepAlive: false });
@@ -171,7 +170,6 @@ export function createContext(opts: GatewayOptions): GatewayContext {
   const scrub = (text: string): string => redact(text, allSecrets);
   const identity = createIdentity({ opts, users, sessions, record, liveSockets });
   const { who, sessionBody, cookie, mayUseMachine, needLogin, revalidateSockets } = identity;
-  const { classify, authorize } = access;
 
   const watchdogS = envNumber(env, 'SHOPDECK_SERIAL_WATCHDOG_S');
   // At least 1 s: a shorter watchdog would call every pause between two reports a stuck board.

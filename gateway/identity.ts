@@ -26,6 +26,11 @@ export type Identity = Pick<
   'who' | 'sessionBody' | 'cookie' | 'mayUseMachine' | 'needLogin' | 'revalidateSockets'
 >;
 
+/** The principal's machine list has the machine (null: every machine). */
+export function mayUseMachine(p: Principal, id: string): boolean {
+  return p.machines === null || p.machines.includes(id);
+}
+
 export function createIdentity({ opts, users, sessions, record, liveSockets }: IdentityDeps): Identity {
   // Sessions kept from before a restart are checked against the users file at the first request.
   let seenUsers = Number.NaN;
@@ -158,10 +163,6 @@ export function createIdentity({ opts, users, sessions, record, liveSockets }: I
     const secure = (req.socket as { encrypted?: boolean }).encrypted ? '; Secure' : '';
     const age = maxAge !== undefined ? `; Max-Age=${maxAge}` : '';
     return `${SESSION_COOKIE}=${token}; Path=/; HttpOnly; SameSite=Strict${secure}${age}`;
-  }
-
-  function mayUseMachine(p: Principal, id: string): boolean {
-    return p.machines === null || p.machines.includes(id);
   }
 
   function needLogin(res: ServerResponse, w: Who): void {

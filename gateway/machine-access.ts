@@ -2,7 +2,8 @@ import { defaultDecision, type AccessDecision, type AccessRequest } from '../src
 import { roleAtLeast } from '../src/fleet/types';
 import type { MachineEntry } from './machines';
 import type { Families } from './options';
-import type { MachineHints, MachinesService, UsersService, Verdict, Who } from './services';
+import { mayUseMachine } from './identity';
+import type { MachineHints, MachinesService, Verdict, Who } from './services';
 
 /**
  * Per machine (context.ts): its family's hints (held session, sharing), the access decision of a
@@ -11,7 +12,6 @@ import type { MachineHints, MachinesService, UsersService, Verdict, Who } from '
  */
 export function createMachineAccess(
   families: Families,
-  mayUseMachine: UsersService['mayUseMachine'],
 ): Pick<MachinesService, 'hintsOf' | 'classify' | 'authorize'> {
   const hints = new Map<string, MachineHints>();
   function hintsOf(m: MachineEntry): MachineHints {

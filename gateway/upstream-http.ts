@@ -14,48 +14,11 @@ import {
 
 /**
  * One upstream per machine, HTTP side: whatever the number of viewers, the gateway's requests to
- * one controller are shared and bounded here, as the family declares (`gateway.sharing`,
- * `SharingHints` in src/fleet/contract.ts). A family without `sharing` is forwarded as before:
- * nothing shared, no limit, no keep-alive.
- *
- * - **Coalesced reads.** A GET that is not a command, has no body, and for which the family's
- *   `shareRead(path, query)` gives a window: identical reads (same machine, method, path and query
- *   and headers as they go upstream, i.e. after the gateway's own changes: held session key,
- *   injected secrets) that arrive while one is in flight join it; those that arrive within
- *   `windowMs` after its answer get that answer again. Headers that are the browser's own
- *   business (user agent, `sec-*`, conditional and cache headers) are dropped from a shared read;
- *   every other header goes upstream and is part of the key (`accept`, `range`, `authorization`…),
- *   so two reads the controller could answer differently are never merged. The key is a hash:
- *   no secret is kept in it.
- * - The shared request runs through the proxy's usual path (`forward` / `answerFromSimulator`:
- *   redirect rewriting, safe answer headers, redaction, held-session retry) into a `Capture`,
- *   whose bytes are then given to each waiter. So redaction and header rules are the same for every
- *   answer; `Set-Cookie` (already dropped there) is dropped again on replay.
- * - Only whole answers up to `maxSharedBytes` are kept, and never the gateway's own failures
- *   (`X-Shopdeck-Gateway: error`: unreachable, timed out, refused…); those are given to the
- *   waiters already joined, as they are. A cut answer cuts every waiter's. An answer larger than
- *   `maxSharedBytes` is streamed to the waiters already joined and not kept.
- * - A browser that leaves takes itself out of the waiters; the upstream request is abandoned only
- *   when no waiter is left (as an unshared one is when its browser leaves).
- * - A command clears the machine's kept answers and closes in-flight reads to newcomers: what was
- *   read before a command is not served after it.
- * - Kept answers are per machine, bounded (`maxCachedAnswers`, `maxCachedBytes`), expired ones
- *   dropped on every use.
- *
- * - **Concurrency.** At most `maxConcurrentReads` reads (every non-command request, shared or
- *   not) upstream at once per machine; more wait in a FIFO queue of at most `maxQueuedReads`.
- *   A full queue, or a read that waited longer than `queueTimeoutMs` (default: the gateway's
- *   timeout), is answered 503 `{ error, gateway: true }`. A waiting read whose browser left is
- *   dropped from the queue.
- * - **Commands** never wait in that queue, are never shared, kept or retried (the held session's
- *   rule: a command whose key expired is not re-sent): they go at once, in the order they reach
- *   this point, each on a fresh connection (never on a kept-alive socket the controller may be
- *   closing at that moment: a command is not lost to a stale socket).
- * - **Keep-alive.** Reads to an `http:` controller use one agent per machine, keep-alive as the
- *   family declares. `https:` controllers keep one pinned TLS socket per request
- *   (tls-pin.ts `connectPinned`, in `forward`): no keep-alive there for now.
- * - Simulated machines get the same sharing and limits (they stand in for hardware).
- * - **Counters** per machine (`stats(id)`): upstream requests, shared answers, queued reads, …
+ * one controller are shared and bounded here as the family declares (`gateway.sharing`,
+ * `SharingHints` in src/fleet/contract.ts): coalesced reads, a read limit with its queue (503 when
+ * full or too long), commands at once on a fresh connection and never shared, kept or retried,
+ * keep-alive, counters. A family without `sharing` is forwarded as before. Simulated machines get
+ * the same. The rules in full: gateway/README.md, "One upstream per machine (HTTP)".
  */
 
 export { AnswerTooLarge, captureAnswer } from './upstream-capture';
