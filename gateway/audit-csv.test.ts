@@ -1,5 +1,6 @@
 import { afterEach, describe, expect, it } from 'vitest';
-import { CSV_COLUMNS, toCsv, type AuditEntry } from './audit';
+import type { AuditEntry } from './audit';
+import { CSV_COLUMNS, toCsv } from './audit-csv';
 import { consoleFetch, gatewayFor, type Cleanups } from './test-util';
 
 const cleanups: Cleanups = [];

@@ -485,5 +485,5 @@ export class AuditLog {
   }
 }
 
-// The HTTP side (query parameters, CSV export) lives in audit-csv.ts.
-export { auditQueryFrom, CSV_COLUMNS, streamCsv, toCsv } from './audit-csv';
+// The HTTP side (query parameters, CSV export) lives in audit-csv.ts (which imports this module's
+// types: not re-exported here, so the two make no import loop).

@@ -8,7 +8,7 @@ import {
   type SimPanel,
   type SimSet,
 } from '../src/fleet/sim-panel';
-import type { GatewayContext, Principal } from './context';
+import type { AuditService, ConfigService, MachinesService, Principal, UsersService } from './services';
 import { clientAddress, decodeSegment, readJson, sendJson } from './http-util';
 import type { MachineEntry } from './machines';
 
@@ -55,10 +55,10 @@ export function simPanel(m: MachineEntry, sim: FaultySimulator): SimPanel {
 class BadControl extends Error {}
 
 /** What the simulator's route uses of the gateway. */
-export type SimServices = Pick<
-  GatewayContext,
-  'byId' | 'mayUseMachine' | 'record' | 'simulatorFor' | 'resetSimulator' | 'builtInDemo' | 'startDemoJob'
->;
+export type SimServices = Pick<MachinesService, 'byId' | 'simulatorFor' | 'resetSimulator' | 'startDemoJob'> &
+  Pick<UsersService, 'mayUseMachine'> &
+  Pick<AuditService, 'record'> &
+  Pick<ConfigService, 'builtInDemo'>;
 
 /** Sets or runs one control; returns what the audit log says about it. */
 function apply(ctx: SimServices, m: MachineEntry, sim: FaultySimulator, set: SimSet): string {

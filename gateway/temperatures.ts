@@ -1,6 +1,6 @@
 import type { IncomingMessage, ServerResponse } from 'node:http';
 import type { JsonRecord, TemperatureDecl, TemperatureReading } from '../src/fleet/contract';
-import type { GatewayContext, Principal } from './context';
+import type { MachinesService, Principal, UsersService } from './services';
 import { decodeSegment, sendJson } from './http-util';
 
 /**
@@ -303,7 +303,7 @@ export const TEMPERATURES_API_PATH = /^\/api\/machines\/(?<id>[^/]+)\/temperatur
  * `since` that is not a whole number 400.
  */
 export function createTemperaturesApi(
-  ctx: Pick<GatewayContext, 'byId' | 'mayUseMachine'>,
+  ctx: Pick<MachinesService, 'byId'> & Pick<UsersService, 'mayUseMachine'>,
   store: TemperatureStore,
 ) {
   return function temperaturesApi(

@@ -1,5 +1,5 @@
 import type { IncomingMessage, ServerResponse } from 'node:http';
-import type { GatewayContext, Principal, Who } from '../context';
+import type { ConfigService, Principal, Who } from '../services';
 import { clientAddress, sendJson } from '../http-util';
 import type { History } from './index';
 
@@ -12,7 +12,10 @@ import type { History } from './index';
 export const HISTORY_API_PATH = /^\/api\/history\/[a-z-]+(\.csv)?$/;
 export { MAX_RANGE_DAYS } from './answers';
 
-export function createHistoryApi(ctx: GatewayContext, history: History) {
+/** What the history's routes use of the gateway. */
+export type HistoryApiServices = Pick<ConfigService, 'config' | 'now'>;
+
+export function createHistoryApi(ctx: HistoryApiServices, history: History) {
   const { config } = ctx;
 
   /** After the dispatcher's checks (routes/history.ts): a GET of a signed-in user (`w`). */

@@ -5,7 +5,7 @@ import type { Logger } from '../log';
 import type { MachineEntry } from '../machines';
 import type { Retention, SettingsStore, Shift } from '../settings';
 import { HistoryReads } from './reads';
-import type { Families } from '../context';
+import type { Families } from '../options';
 import type { StatsPuller } from '../../src/fleet/server-part';
 import { HEARTBEAT_MS, HistoryStore, jobCommandsOf } from './store';
 

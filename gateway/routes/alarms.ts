@@ -1,7 +1,6 @@
 import { z } from 'zod';
 import { roleAtLeast } from '../../src/fleet/types';
-import type { AlarmCentre } from '../alarms';
-import type { GatewayContext } from '../context';
+import type { AlarmsService, AuditService, UsersService } from '../services';
 import { sendJson } from '../http-util';
 import { DEFAULT_BODY_LIMIT, type ApiRoute } from './route';
 
@@ -22,7 +21,9 @@ function oneOf<T extends string>(values: readonly T[], v: string | null): T | un
   return values.find((x) => x === v);
 }
 
-export type AlarmsServices = Pick<GatewayContext, 'record' | 'mayUseMachine'> & { alarms: AlarmCentre };
+export type AlarmsServices = AlarmsService &
+  Pick<AuditService, 'record'> &
+  Pick<UsersService, 'mayUseMachine'>;
 
 export function alarmsRoutes({ alarms, record, mayUseMachine }: AlarmsServices): ApiRoute[] {
   return [

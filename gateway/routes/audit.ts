@@ -1,5 +1,5 @@
-import { auditQueryFrom, streamCsv } from '../audit';
-import type { GatewayContext } from '../context';
+import { auditQueryFrom, streamCsv } from '../audit-csv';
+import type { AuditService, SecretsService } from '../services';
 import { sendJson } from '../http-util';
 import type { ApiRoute, GuardedRoute } from './route';
 
@@ -8,7 +8,7 @@ import type { ApiRoute, GuardedRoute } from './route';
  * limited to the machines of the supervisor's list.
  */
 
-export type AuditServices = Pick<GatewayContext, 'audit' | 'scrub'>;
+export type AuditServices = Pick<AuditService, 'audit'> & Pick<SecretsService, 'scrub'>;
 
 export function auditRoutes({ audit, scrub }: AuditServices): ApiRoute[] {
   const read: Omit<GuardedRoute, 'path'> = {

@@ -1,4 +1,4 @@
-import type { GatewayContext } from '../context';
+import type { ConfigService } from '../services';
 import { sendJson } from '../http-util';
 import type { ApiRoute } from './route';
 
@@ -9,7 +9,7 @@ const SEGMENT = /^[a-z0-9-]{1,40}$/;
  * A family's own routes (its server part's `routes`, e.g. xTool discovery): `GET /api/<name>/<kind>`,
  * the role and the 403 message each declares. Listed after the gateway's own routes.
  */
-export function familyRoutes({ opts, env }: Pick<GatewayContext, 'opts' | 'env'>): ApiRoute[] {
+export function familyRoutes({ opts, env }: Pick<ConfigService, 'opts' | 'env'>): ApiRoute[] {
   const routes: ApiRoute[] = [];
   const kinds = new Set<string>();
   for (const f of Object.values(opts.families)) {

@@ -1,10 +1,9 @@
-import type { GatewayContext } from '../context';
 import type { History } from '../history';
-import { createHistoryApi, HISTORY_API_PATH } from '../history/api';
+import { createHistoryApi, HISTORY_API_PATH, type HistoryApiServices } from '../history/api';
 import type { ApiRoute } from './route';
 
 /** `GET /api/history/*` (history/api.ts): any signed-in user; present only with a history. */
-export function historyRoutes(ctx: GatewayContext, history: History | undefined): ApiRoute[] {
+export function historyRoutes(ctx: HistoryApiServices, history: History | undefined): ApiRoute[] {
   if (!history) return [];
   const historyApi = createHistoryApi(ctx, history);
   return [

@@ -1,7 +1,7 @@
 import type { ServerWatch } from '../../src/fleet/types';
 import { mostSevereAlarm } from '../../src/fleet/types';
 import type { WatchJobRecord, WatchSummary } from '../../src/fleet/contract';
-import type { GatewayContext } from '../context';
+import type { ConfigService, SecretsService } from '../services';
 import { sendJson } from '../http-util';
 import { machineInfo } from '../machines';
 import { createSimApi, SIM_API_PATH, simAuditPath, type SimServices } from '../sim-api';
@@ -72,7 +72,8 @@ export function watchForPage(
   };
 }
 
-export type MachinesServices = Pick<GatewayContext, 'config' | 'now' | 'scrub' | 'builtInDemo'> &
+export type MachinesServices = Pick<ConfigService, 'config' | 'now' | 'builtInDemo'> &
+  Pick<SecretsService, 'scrub'> &
   SimServices & {
     /** What the gateway's watch knows of a machine now; absent: nothing is watched. */
     watched?: (id: string) => Watched | null;

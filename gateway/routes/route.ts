@@ -1,6 +1,6 @@
 import type { IncomingMessage, ServerResponse } from 'node:http';
 import { roleAtLeast, type Role } from '../../src/fleet/types';
-import type { GatewayContext, Principal, Who } from '../context';
+import type { AuditService, Principal, UsersService, Who } from '../services';
 import { clientAddress, readJson, sendJson } from '../http-util';
 
 /**
@@ -90,7 +90,7 @@ export function routeKey(r: ApiRoute): string {
   return `${r.method} ${String(r.path)}`;
 }
 
-type Guard = Pick<GatewayContext, 'who' | 'needLogin' | 'record'>;
+type Guard = Pick<UsersService, 'who' | 'needLogin'> & Pick<AuditService, 'record'>;
 
 /**
  * The dispatcher: the first route whose path matches and whose method is the request's answers;

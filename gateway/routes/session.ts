@@ -1,11 +1,11 @@
 import type { ServerResponse } from 'node:http';
 import { z } from 'zod';
 import { LoginHistory, SESSION_COOKIE, type LimitKey } from '../auth';
-import type { GatewayContext, Who } from '../context';
+import type { AuditService, ConfigService, UsersService, Who } from '../services';
 import { parseCookies, sendJson } from '../http-util';
 import { LOGOUT_CLEAR_SITE_DATA } from '../page-headers';
 import { PIN_RULE, checkSecret } from '../users';
-import { DEFAULT_BODY_LIMIT, type ApiRoute } from './route';
+import { DEFAULT_BODY_LIMIT, type ApiRoute, type RouteCall } from './route';
 
 /**
  * The session: who is logged in, logging in and out, and a supervisor's PIN unlock of an
@@ -21,19 +21,19 @@ function tooMany(res: ServerResponse, error: string, retryAfterS: number): void 
 }
 
 export type SessionServices = Pick<
-  GatewayContext,
+  UsersService,
   | 'users'
   | 'sessions'
   | 'limiter'
-  | 'record'
   | 'who'
   | 'sessionBody'
   | 'cookie'
   | 'needLogin'
-  | 'now'
   | 'elevationMs'
   | 'revalidateSockets'
->;
+> &
+  Pick<AuditService, 'record'> &
+  Pick<ConfigService, 'now'>;
 
 export function sessionRoutes(s: SessionServices): ApiRoute[] {
   const {
@@ -143,6 +143,67 @@ export function sessionRoutes(s: SessionServices): ApiRoute[] {
     return notes.map((n) => `; ${n}`).join('');
   }
 
+  /**
+   * Reads a login's or an unlock's body; a body that is not `schema` is answered 400 with `shape`
+   * (what to send) and gives null.
+   */
+  async function readAttempt<T>(
+    res: ServerResponse,
+    call: RouteCall,
+    schema: z.ZodType<T>,
+    shape: string,
+  ): Promise<T | null> {
+    const body = schema.safeParse(await call.body());
+    if (body.success) return body.data;
+    sendJson(res, 400, { error: shape });
+    return null;
+  }
+
+  /**
+   * A password login and a supervisor's PIN unlock alike, once the body is read: the attempt is
+   * counted BEFORE the slow comparison (concurrent guesses cannot all pass the check); a key at
+   * its limit is refused (429, `Retry-After`), a wrong secret answered 401, each written to the
+   * audit log as `type` (`refused` / `failed`). Gives who the secret belongs to (the counted
+   * attempt given back), or null when it was answered here.
+   */
+  async function attempt<U>(
+    res: ServerResponse,
+    a: {
+      type: 'login-failed' | 'elevate-failed';
+      /** Who the attempt names. */
+      name: string;
+      /** The operator whose tablet a PIN unlocks. */
+      onBehalfOf?: string;
+      address: string;
+      keys: LimitKey[];
+      /** The audit's error and the answer when `key` is at its limit. */
+      limited(key: string, retryAfterS: number): [string, string];
+      /** Compares the secret: its owner, or the audit's error and the answer. */
+      verify(): Promise<{ ok: true; owner: U } | { ok: false; error: string; answer: string }>;
+      /** Added to a failure's audit entry (what became locked by it). */
+      failNote?(): string;
+    },
+  ): Promise<U | null> {
+    const { type, name, address } = a;
+    const by = a.onBehalfOf !== undefined ? { onBehalfOf: a.onBehalfOf } : {};
+    const slot = limiter.reserve(a.keys);
+    if (!slot.ok) {
+      const [error, answer] = a.limited(slot.key, slot.retryAfterS);
+      record({ type, result: 'refused', user: name, ...by, source: 'gateway', address, error });
+      tooMany(res, answer, slot.retryAfterS);
+      return null;
+    }
+    const v = await a.verify();
+    if (!v.ok) {
+      const error = v.error + (a.failNote?.() ?? '');
+      record({ type, result: 'failed', user: name, ...by, source: 'gateway', address, error });
+      sendJson(res, 401, { error: v.answer });
+      return null;
+    }
+    slot.release();
+    return v.owner;
+  }
+
   return [
     {
       method: 'GET',
@@ -178,44 +239,30 @@ export function sessionRoutes(s: SessionServices): ApiRoute[] {
           sendJson(res, 400, { error: 'open mode: there are no users to log in as' });
           return;
         }
-        const body = loginSchema.safeParse(await call.body());
-        if (!body.success) {
-          sendJson(res, 400, { error: 'send { "name": …, "password": … }' });
-          return;
-        }
-        const { name, password } = body.data;
-        // Counted BEFORE the slow comparison: concurrent guesses cannot all pass the check.
+        const body = await readAttempt(res, call, loginSchema, 'send { "name": …, "password": … }');
+        if (!body) return;
+        const { name, password } = body;
         const keys = loginKeys(name, address);
-        const slot = limiter.reserve(keys);
-        if (!slot.ok) {
-          record({
-            type: 'login-failed',
-            result: 'refused',
-            user: name,
-            source: 'gateway',
-            address,
-            error: slot.key.startsWith('user:')
+        const u = await attempt(res, {
+          type: 'login-failed',
+          name,
+          address,
+          keys,
+          limited: (key, retryAfterS) => [
+            key.startsWith('user:')
               ? 'too many failed logins for this user from addresses it never logged in from'
               : 'too many failed logins',
-          });
-          tooMany(res, `too many failed logins: try again in ${slot.retryAfterS} s`, slot.retryAfterS);
-          return;
-        }
-        const u = users.find(name);
-        const ok = await checkSecret(password, u?.passwordHash ?? users.dummyHash('password'));
-        if (!u || !ok) {
-          record({
-            type: 'login-failed',
-            result: 'failed',
-            user: name,
-            source: 'gateway',
-            address,
-            error: 'wrong name or password',
-          });
-          sendJson(res, 401, { error: 'wrong name or password' });
-          return;
-        }
-        slot.release();
+            `too many failed logins: try again in ${retryAfterS} s`,
+          ],
+          async verify() {
+            const found = users.find(name);
+            const ok = await checkSecret(password, found?.passwordHash ?? users.dummyHash('password'));
+            return found && ok
+              ? { ok: true, owner: found }
+              : { ok: false, error: 'wrong name or password', answer: 'wrong name or password' };
+          },
+        });
+        if (!u) return;
         limiter.clear(keys[0]!.key);
         logins.remember(u.name, address);
         // The login replaces whatever session this browser had: none is left behind.
@@ -303,56 +350,35 @@ export function sessionRoutes(s: SessionServices): ApiRoute[] {
           });
           return;
         }
-        const body = elevateSchema.safeParse(await call.body());
-        if (!body.success) {
-          sendJson(res, 400, { error: 'send { "name": …, "pin": … }' });
-          return;
-        }
-        const { name, pin } = body.data;
-        // Counted BEFORE the slow comparison: concurrent guesses cannot all pass the check.
-        const slot = limiter.reserve(pinKeys(name, onBehalfOf, address));
-        if (!slot.ok) {
-          const [error, answer] = pinRefusal(slot.key, name, onBehalfOf, slot.retryAfterS);
-          record({
-            type: 'elevate-failed',
-            result: 'refused',
-            user: name,
-            onBehalfOf,
-            source: 'gateway',
-            address,
-            error,
-          });
-          tooMany(res, answer, slot.retryAfterS);
-          return;
-        }
-        const fail = (error: string, answer: string): void => {
-          record({
-            type: 'elevate-failed',
-            result: 'failed',
-            user: name,
-            onBehalfOf,
-            source: 'gateway',
-            address,
-            error: error + pinLockNote(name, onBehalfOf, address),
-          });
-          sendJson(res, 401, { error: answer });
-        };
-        if (!PIN_RULE.test(pin)) {
-          // Not evaluated, but counted like any wrong PIN.
-          fail(
-            'a PIN has 6 to 12 digits: not checked',
-            'wrong supervisor name or PIN (a PIN has 6 to 12 digits; a shorter one must be set again with npm run user -- pin)',
-          );
-          return;
-        }
-        const sup = users.find(name);
-        const real = sup?.role === 'supervisor' && sup.pinHash ? sup.pinHash : null;
-        const ok = await checkSecret(pin, real ?? users.dummyHash('pin'));
-        if (!sup || !real || !ok) {
-          fail('wrong supervisor or PIN', 'wrong supervisor name or PIN');
-          return;
-        }
-        slot.release();
+        const body = await readAttempt(res, call, elevateSchema, 'send { "name": …, "pin": … }');
+        if (!body) return;
+        const { name, pin } = body;
+        const sup = await attempt(res, {
+          type: 'elevate-failed',
+          name,
+          onBehalfOf,
+          address,
+          keys: pinKeys(name, onBehalfOf, address),
+          limited: (key, retryAfterS) => pinRefusal(key, name, onBehalfOf, retryAfterS),
+          async verify() {
+            if (!PIN_RULE.test(pin))
+              // Not evaluated, but counted like any wrong PIN.
+              return {
+                ok: false,
+                error: 'a PIN has 6 to 12 digits: not checked',
+                answer:
+                  'wrong supervisor name or PIN (a PIN has 6 to 12 digits; a shorter one must be set again with npm run user -- pin)',
+              };
+            const found = users.find(name);
+            const real = found?.role === 'supervisor' && found.pinHash ? found.pinHash : null;
+            const ok = await checkSecret(pin, real ?? users.dummyHash('pin'));
+            return found && real && ok
+              ? { ok: true, owner: found }
+              : { ok: false, error: 'wrong supervisor or PIN', answer: 'wrong supervisor name or PIN' };
+          },
+          failNote: () => pinLockNote(name, onBehalfOf, address),
+        });
+        if (!sup) return;
         unlocks.remember(sup.name, tabletOf(onBehalfOf, address));
         w.session.elevation = { supervisor: sup.name, until: now() + elevationMs };
         record({

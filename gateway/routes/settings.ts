@@ -1,10 +1,8 @@
 import { z } from 'zod';
 import { webhookPayload } from '../alarms';
-import type { GatewayContext } from '../context';
-import type { History } from '../history';
 import { sendJson } from '../http-util';
-import { retentionSchema, shiftsSchema, type SettingsStore } from '../settings';
-import type { Webhook } from '../webhook';
+import type { AuditService, ConfigService, HistoryService, SettingsService } from '../services';
+import { retentionSchema, shiftsSchema } from '../settings';
 import { DEFAULT_BODY_LIMIT, type ApiRoute } from './route';
 
 /** The server settings (alarm webhook, shifts, history retention): supervisors only. */
@@ -21,11 +19,10 @@ const settingsSchema = z
 
 const REFUSAL = 'the server settings are for supervisors';
 
-export type SettingsServices = Pick<GatewayContext, 'record' | 'now'> & {
-  settings: SettingsStore;
-  webhook: Webhook;
-  history?: History;
-};
+export type SettingsServices = SettingsService &
+  HistoryService &
+  Pick<AuditService, 'record'> &
+  Pick<ConfigService, 'now'>;
 
 export function settingsRoutes({ settings, webhook, history, record, now }: SettingsServices): ApiRoute[] {
   return [

@@ -1,11 +1,15 @@
-import type { GatewayContext } from '../context';
+import type { AuditService, ConfigService, LinksService, MachinesService, UsersService } from '../services';
 import { sendJson } from '../http-util';
 import { listPins, pinInfo } from '../tls-pin';
 import type { ApiRoute } from './route';
 
 /** The controllers' pinned TLS certificates (tls-pin.ts): supervisors only. */
 
-export type TlsServices = Pick<GatewayContext, 'config' | 'byId' | 'pins' | 'record' | 'mayUseMachine'>;
+export type TlsServices = Pick<ConfigService, 'config'> &
+  Pick<MachinesService, 'byId'> &
+  Pick<LinksService, 'pins'> &
+  Pick<AuditService, 'record'> &
+  Pick<UsersService, 'mayUseMachine'>;
 
 export function tlsRoutes({ config, byId, pins, record, mayUseMachine }: TlsServices): ApiRoute[] {
   return [
