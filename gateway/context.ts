@@ -1,5 +1,5 @@
 import { PinStore } from './tls-pin';
-import { StreamHubs } from './streams';
+import { StreamHubs } from './stream-hubs';
 import { secretPatterns } from './redact';
 import http, { type IncomingMessage } from 'node:http';
 import { isIP } from 'node:net';

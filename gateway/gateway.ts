@@ -14,7 +14,7 @@ import { createReadSocket, READ_SOCKET_PATH, type ReadSocketHeld } from './read-
 import { type AlarmCentre, createAlarmStores } from './alarms';
 import { MachineWatch } from './watch';
 import { TemperatureStore } from './temperatures';
-import { StreamHubs } from './streams';
+import { StreamHubs } from './stream-hubs';
 import { createHistory, type History } from './history';
 import type { Webhook } from './webhook';
 import { endHeldSessions } from './held-session';

@@ -13,7 +13,7 @@ import { auditTarget, splitTarget } from './paths';
 import { bridgeSimSocket } from './sim-server';
 import { holdSocket } from './held-session';
 import type { SharedStreamDecl } from '../src/fleet/contract';
-import { streamQuery } from './streams';
+import { streamQuery } from './stream-hubs';
 import type { GatewayContext } from './context';
 import { createSocketOpener } from './controller-socket';
 import { createStreamJoin } from './stream-join';

@@ -15,7 +15,7 @@ import type { MachineEntry, MachinesConfig } from './machines';
 import type { GatewayOptions } from './options';
 import type { RefusalAggregator } from './refusals';
 import type { SettingsStore } from './settings';
-import type { StreamHubs } from './streams';
+import type { StreamHubs } from './stream-hubs';
 import type { PinStore } from './tls-pin';
 import type { UpstreamHttp, UpstreamStats } from './upstream-http';
 import type { UserDirectory } from './users';

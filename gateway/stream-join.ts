@@ -3,7 +3,8 @@ import type { GatewayContext } from './context';
 import { holdSocket, type HeldSocket } from './held-session';
 import type { MachineEntry } from './machines';
 import { redactFrame } from './redact';
-import { simUpstream, StreamHub, StreamHubs, streamQuery, wsUpstream } from './streams';
+import { StreamHubs, streamQuery } from './stream-hubs';
+import { simUpstream, StreamHub, wsUpstream } from './streams';
 import type { createSocketOpener } from './controller-socket';
 
 /** A machine's shared streams (streams.ts): browsers and the gateway's watch join their hub. */

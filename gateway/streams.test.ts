@@ -11,7 +11,8 @@ import type {
   SharedStreamDecl,
 } from '../src/fleet/contract';
 import type { MachineEntry } from './machines';
-import { DEFAULT_STREAM_LIMITS, StreamHub, streamQuery, type UpstreamSocket } from './streams';
+import { streamQuery } from './stream-hubs';
+import { DEFAULT_STREAM_LIMITS, StreamHub, type UpstreamSocket } from './streams';
 import { startGateway, tempDir, testFamily, type Running } from './test-util';
 
 /**

@@ -33,7 +33,6 @@ export {
   UPSTREAM_DEAD_AFTER_PINGS,
 } from './stream-options';
 export { simUpstream, wsUpstream, type UpstreamSocket } from './stream-upstream';
-export { StreamHubs, streamQuery } from './stream-hubs';
 
 interface Viewer {
   ws: WebSocket;
