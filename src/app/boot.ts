@@ -12,6 +12,7 @@ import {
   type MachineRuntime,
 } from '../fleet/fleet';
 import { backoffDelay } from '../fleet/link';
+import { pageScheduler } from '../fleet/kernel/scheduler';
 import type { MachineInfo, MachineKind, ServerJobRecord } from '../fleet/types';
 import { CONSOLE_HEADERS } from '../fleet/origin';
 import { startReadSocket } from '../fleet/read-socket';
@@ -127,10 +128,10 @@ export async function boot(): Promise<void> {
     const stopWatching = inView.snapshot.subscribe((s) => {
       if (s.link !== 'connecting') shown();
     });
-    const shownTimer = setTimeout(shown, OTHERS_AFTER_MS);
+    const cancelShown = pageScheduler.after(OTHERS_AFTER_MS, shown);
     function shown(): void {
       stopWatching();
-      clearTimeout(shownTimer);
+      cancelShown();
       firstScreenShown();
     }
   } else if (!fleetInView()) firstScreenShown();
@@ -140,11 +141,11 @@ export async function boot(): Promise<void> {
     // or after a few seconds at the latest. Without a reading, the code loads at once.
     if (inView.info.watch) {
       const go = (): void => {
-        clearTimeout(fallback);
+        cancelFallback();
         stopWaiting();
         start([inView]);
       };
-      const fallback = setTimeout(go, OTHERS_AFTER_MS);
+      const cancelFallback = pageScheduler.after(OTHERS_AFTER_MS, go);
       const stopWaiting = onFirstScreen(go);
     } else start([inView]);
     const stop = onLocationChange(() => {
@@ -177,7 +178,7 @@ const JOB_RECORDS_EVERY_MS = 5000;
  * malformed answer changes nothing (the records stay as last received, the next try comes).
  */
 function refreshJobRecords(): void {
-  const timer = setInterval(() => {
+  const stop = pageScheduler.every(JOB_RECORDS_EVERY_MS, () => {
     if (document.hidden) return;
     void fetch('/api/machines', { credentials: 'same-origin', headers: CONSOLE_HEADERS })
       .then(async (r) => {
@@ -193,8 +194,8 @@ function refreshJobRecords(): void {
         setJobRecords(next, Date.now());
       })
       .catch(() => undefined);
-  }, JOB_RECORDS_EVERY_MS);
-  window.addEventListener('pagehide', () => clearInterval(timer));
+  });
+  window.addEventListener('pagehide', stop);
 }
 
 /** The machine whose page is open (`/m/<id>…`), if one is (the router's reading of the address). */
@@ -240,7 +241,7 @@ export function startFamily(kind: MachineKind, rts: MachineRuntime[], attempt = 
     },
     (e: unknown) => {
       if (attempt + 1 < FAMILY_LOAD_TRIES) {
-        setTimeout(() => startFamily(kind, rts, attempt + 1), backoffDelay(attempt));
+        pageScheduler.after(backoffDelay(attempt), () => startFamily(kind, rts, attempt + 1));
         return;
       }
       const why = e instanceof Error ? e.message : String(e);

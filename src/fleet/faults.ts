@@ -1,6 +1,7 @@
 import type { LinkTracker, SessionContext } from './contract';
 import { LinkError } from './errors';
 import type { Lifecycle } from './kernel';
+import type { Deadline } from './kernel/scheduler';
 import { backoffDelay, type BackoffOptions } from './link';
 
 /**
@@ -86,18 +87,15 @@ export function quickRetry(ctx: SessionContext, tracker: LinkTracker, startedAt:
 
 /**
  * A liveness rule: no good answer for `windowMs` is silence, reported once (`onSilent`) until the
- * next good answer. One timer of the run's, set for the moment the window ends: an answer moves
- * that moment on without touching the timer (it fires, finds the window not over, and is set
- * again for the rest), unless the window shrank (the slow-link rule) so that the moment came
- * nearer. About one wake-up per answer instead of one every quarter (an xTool: tenth) of a
- * second (issue 34); silence is seen at the window's end exactly. Ends with the run.
+ * next good answer. The end of the window is a deadline of the run's (`Lifecycle.deadline`, one
+ * implementation with the socket heartbeat's): an answer moves it on without a new timer, a window
+ * that shrank (the slow-link rule) sets it nearer; silence is seen at the window's end exactly.
+ * About one wake-up per answer, not one every quarter (xTool: tenth) of a second. Ends with the run.
  */
 export class Liveness {
   private lastHeard = 0;
   private reported = false;
-  private timer: ReturnType<Lifecycle['setTimeout']> = null;
-  /** When the timer set fires (ms, `now`'s clock). */
-  private due = Infinity;
+  private readonly end: Deadline<unknown>;
 
   constructor(
     private readonly o: {
@@ -106,44 +104,29 @@ export class Liveness {
       windowMs: () => number;
       onSilent: (quietMs: number) => void;
     },
-  ) {}
+  ) {
+    this.end = o.life.deadline({
+      now: o.now,
+      due: () => (this.reported ? null : this.lastHeard + this.o.windowMs()),
+      fire: () => {
+        this.reported = true;
+        this.o.onSilent(this.o.now() - this.lastHeard);
+      },
+    });
+  }
 
   /** On start: the clock starts now. */
   start(): void {
     this.lastHeard = this.o.now();
     this.reported = false;
-    this.arm();
+    this.end.update(true);
   }
 
   /** A good answer came. */
   heard(): void {
     this.lastHeard = this.o.now();
-    const end = this.lastHeard + this.o.windowMs();
-    if (this.reported || this.timer === null || end < this.due) {
-      this.reported = false;
-      this.arm();
-    }
-  }
-
-  private arm(): void {
-    this.o.life.clearTimeout(this.timer);
-    const now = this.o.now();
-    const left = Math.max(0, this.lastHeard + this.o.windowMs() - now);
-    this.due = now + left;
-    this.timer = this.o.life.setTimeout(() => this.check(), left);
-  }
-
-  private check(): void {
-    this.timer = null;
-    this.due = Infinity;
-    if (this.reported) return;
-    const quiet = this.o.now() - this.lastHeard;
-    if (quiet < this.o.windowMs()) {
-      this.arm();
-      return;
-    }
-    this.reported = true;
-    this.o.onSilent(quiet);
+    this.reported = false;
+    this.end.update();
   }
 }
 

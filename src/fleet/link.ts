@@ -1,3 +1,4 @@
+import { pageScheduler, type Cancel, type Deadline, type Scheduler } from './kernel/scheduler';
 import { wsUrlFor } from './origin';
 /**
  * Per-machine link machinery: backoff, a poll scheduler that never overlaps, page visibility,
@@ -73,6 +74,8 @@ export interface PollerOptions {
    */
   aligned?: () => boolean;
   now?: () => number;
+  /** Whose timers (default the page's scheduler: polls due at one moment share one timer). */
+  scheduler?: Scheduler;
 }
 
 /**
@@ -80,7 +83,7 @@ export interface PollerOptions {
  * (never more often than HIDDEN_POLL_MS), and `kick()` to poll now (when no poll is running).
  */
 export class Poller {
-  private timer: ReturnType<typeof setTimeout> | null = null;
+  private timer: Cancel | null = null;
   private running = false;
   /** A kick arrived while a poll was in flight: poll again as soon as it ends. */
   private kicked = false;
@@ -90,11 +93,13 @@ export class Poller {
   private failures = 0;
   private unsubscribe: (() => void) | null = null;
   private readonly vis: Visibility;
+  private readonly scheduler: Scheduler;
   /** Count of polls started, for tests and benchmarks. */
   started = 0;
 
   constructor(private readonly opts: PollerOptions) {
     this.vis = opts.visibility ?? documentVisibility;
+    this.scheduler = opts.scheduler ?? pageScheduler;
   }
 
   start(delayMs = 0): void {
@@ -112,7 +117,7 @@ export class Poller {
     this.kicked = false;
     this.running = false;
     this.generation++;
-    if (this.timer) clearTimeout(this.timer);
+    this.timer?.();
     this.timer = null;
     this.unsubscribe?.();
     this.unsubscribe = null;
@@ -143,8 +148,8 @@ export class Poller {
 
   private schedule(delayMs: number): void {
     if (this.stopped) return;
-    if (this.timer) clearTimeout(this.timer);
-    this.timer = setTimeout(() => void this.tick(), delayMs);
+    this.timer?.();
+    this.timer = this.scheduler.after(delayMs, () => void this.tick());
   }
 
   private async tick(): Promise<void> {
@@ -198,6 +203,8 @@ export interface SocketLinkOptions {
    */
   fallback?: { run: () => Promise<void>; intervalMs: number; visibility?: Visibility };
   now?: () => number;
+  /** Whose timers (default the page's scheduler). */
+  scheduler?: Scheduler;
 }
 
 /**
@@ -233,7 +240,7 @@ function nextFrame(fn: () => void): void {
 export class SocketLink {
   private ws: WebSocket | null = null;
   private attempt = 0;
-  private timer: ReturnType<typeof setTimeout> | null = null;
+  private timer: Cancel | null = null;
   private closedByUs = false;
   /** Messages waiting for the next frame (coalesce), and whether a flush is scheduled. */
   private batch: string[] = [];
@@ -245,18 +252,27 @@ export class SocketLink {
   private lastMessageAt = 0;
   private pingSentAt: number | null = null;
   private gotFirst = false;
-  private watch: ReturnType<typeof setTimeout> | null = null;
-  private watchDue = Infinity;
+  /** The heartbeat rule's next moment: one deadline, moved on by messages (no timer each). */
+  private readonly watch: Deadline;
   private readonly fallback: Poller | null;
   private readonly now: () => number;
+  private readonly scheduler: Scheduler;
 
   constructor(private readonly opts: SocketLinkOptions) {
     this.now = opts.now ?? Date.now;
+    this.scheduler = opts.scheduler ?? pageScheduler;
+    this.watch = this.scheduler.deadline({
+      now: this.now,
+      // Only while a socket of ours is up (a closed socket's reconnect has its own timer).
+      due: () => (this.closedByUs || !this.ws ? null : this.heartbeatDue()),
+      fire: () => this.checkHeartbeat(),
+    });
     this.fallback = opts.fallback
       ? new Poller({
           run: opts.fallback.run,
           intervalMs: () => opts.fallback?.intervalMs ?? 1000,
           visibility: opts.fallback.visibility,
+          scheduler: this.scheduler,
         })
       : null;
     if (opts.autoConnect !== false) this.connect();
@@ -302,31 +318,13 @@ export class SocketLink {
     return this.lastMessageAt + hb.silenceMs;
   }
 
-  /**
-   * One timer set for that moment (issue 34: not an interval every half second per socket). A
-   * message moves the moment on without touching the timer: it fires, finds nothing due, and is
-   * set again for the rest; it is set anew only when the moment came nearer.
-   */
+  /** The heartbeat's deadline set anew for its moment (a new socket). */
   private startWatch(): void {
-    this.stopWatch();
-    const due = this.heartbeatDue();
-    if (due === null) return;
-    this.watchDue = due;
-    this.watch = setTimeout(
-      () => {
-        this.watch = null;
-        this.watchDue = Infinity;
-        this.checkHeartbeat();
-        if (!this.watch && !this.closedByUs && this.ws) this.startWatch();
-      },
-      Math.max(0, due - this.now()),
-    );
+    this.watch.update(true);
   }
 
   private stopWatch(): void {
-    if (this.watch) clearTimeout(this.watch);
-    this.watch = null;
-    this.watchDue = Infinity;
+    this.watch.cancel();
   }
 
   private heard(): void {
@@ -337,8 +335,9 @@ export class SocketLink {
       this.gotFirst = true;
       this.fallback?.stop();
     }
-    const due = this.heartbeatDue();
-    if (due !== null && (answered || this.watch === null || due < this.watchDue)) this.startWatch();
+    // A later moment keeps the timer (it fires early and is set for the rest); a ping answered
+    // sets it anew.
+    this.watch.update(answered);
   }
 
   /** The socket stopped delivering: poll in its place (when declared) until it is back. */
@@ -360,7 +359,7 @@ export class SocketLink {
   connect(): void {
     this.opened++;
     this.closedByUs = false;
-    if (this.timer) clearTimeout(this.timer);
+    this.timer?.();
     this.timer = null;
     this.retryAt = null;
     // One socket at a time: a socket still connecting (or open) is dropped, never orphaned.
@@ -371,15 +370,16 @@ export class SocketLink {
     this.lastMessageAt = this.connectedAt;
     this.pingSentAt = null;
     this.gotFirst = false;
-    this.startWatch();
     let ws: WebSocket;
     try {
       ws = new globalThis.WebSocket(url);
     } catch {
+      this.stopWatch();
       this.scheduleReconnect();
       return;
     }
     this.ws = ws;
+    this.startWatch();
     ws.onopen = () => {
       this.attempt = 0;
       this.opts.onOpen?.();
@@ -457,7 +457,7 @@ export class SocketLink {
     this.closedByUs = true;
     this.stopWatch();
     this.fallback?.stop();
-    if (this.timer) clearTimeout(this.timer);
+    this.timer?.();
     this.timer = null;
     this.retryAt = null;
     this.drop(this.ws, 1000);
@@ -468,7 +468,10 @@ export class SocketLink {
     if (this.closedByUs) return;
     const delay = backoffDelay(this.attempt++, this.opts.backoff);
     this.retryAt = this.now() + delay;
-    this.timer = setTimeout(() => this.connect(), delay);
+    this.timer = this.scheduler.after(delay, () => {
+      this.timer = null;
+      this.connect();
+    });
   }
 }
 

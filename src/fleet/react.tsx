@@ -6,6 +6,9 @@ import { authStore } from './auth';
 import { CommandNotConfirmed, confirmationText, type CommandDecl, type CommandRunner } from './commands';
 import type { SessionContext } from './contract';
 import { useBlockedReason } from './kernel/commands';
+import type { Scheduler } from './kernel/scheduler';
+import { useScheduler } from './kernel/use-scheduler';
+export { SchedulerContext, useScheduler } from './kernel/use-scheduler';
 import type { LogEntry, MachineLog } from './log';
 import type { MachineSnapshot, Role } from './types';
 import { roleAtLeast } from './types';
@@ -27,66 +30,77 @@ export function useSnapshot<U>(
 
 /**
  * One shared clock per period (issue 16): every component that shows a time (data ages,
- * countdowns) reads the same ticker instead of a timer each; only those components re-render on
- * a tick. The ticker stops when nobody reads it.
+ * countdowns) reads the same ticker, the scheduler's tick of that period, instead of a timer
+ * each; only those components re-render on a tick. The ticker stops when nobody reads it.
  */
-const clocks = new Map<
-  number,
-  { now: number; listeners: Set<() => void>; timer: ReturnType<typeof setInterval> | null }
->();
+interface Clock {
+  now: number;
+  listeners: Set<() => void>;
+  stop: (() => void) | null;
+}
+const clocks = new WeakMap<Scheduler, Map<number, Clock>>();
 
-function clockOf(everyMs: number) {
-  let c = clocks.get(everyMs);
+function clockOf(scheduler: Scheduler, everyMs: number): Clock {
+  let byPeriod = clocks.get(scheduler);
+  if (!byPeriod) {
+    byPeriod = new Map();
+    clocks.set(scheduler, byPeriod);
+  }
+  let c = byPeriod.get(everyMs);
   if (!c) {
-    c = { now: Date.now(), listeners: new Set(), timer: null };
-    clocks.set(everyMs, c);
+    c = { now: scheduler.now(), listeners: new Set(), stop: null };
+    byPeriod.set(everyMs, c);
   }
   return c;
 }
 
 const pageHidden = (): boolean => typeof document !== 'undefined' && document.hidden;
 
-function tick(c: { now: number; listeners: Set<() => void> }): void {
-  c.now = Date.now();
+function tick(scheduler: Scheduler, c: Clock): void {
+  c.now = scheduler.now();
   for (const l of [...c.listeners]) l();
 }
 
-let watchingVisibility = false;
+const watchingVisibility = new WeakSet<Scheduler>();
 /** Shown again: every running clock reads the time at once. */
-function watchVisibility(): void {
-  if (watchingVisibility || typeof document === 'undefined') return;
-  watchingVisibility = true;
+function watchVisibility(scheduler: Scheduler): void {
+  if (watchingVisibility.has(scheduler) || typeof document === 'undefined') return;
+  watchingVisibility.add(scheduler);
   document.addEventListener('visibilitychange', () => {
     if (pageHidden()) return;
-    for (const c of clocks.values()) if (c.timer !== null) tick(c);
+    for (const c of clocks.get(scheduler)?.values() ?? []) if (c.stop !== null) tick(scheduler, c);
   });
 }
 
-function subscribeClock(everyMs: number, listener: () => void): () => void {
-  const c = clockOf(everyMs);
+function subscribeClock(scheduler: Scheduler, everyMs: number, listener: () => void): () => void {
+  const c = clockOf(scheduler, everyMs);
   c.listeners.add(listener);
-  if (c.timer === null) {
-    c.now = Date.now();
-    // One timer for every reader of this period: they all update in the same frame.
+  if (c.stop === null) {
+    c.now = scheduler.now();
+    // The scheduler's one tick of this period: every reader updates in the same frame.
     // A hidden page shows nothing: it does not re-render for the clock (it catches up when shown).
-    c.timer = setInterval(() => {
-      if (!pageHidden()) tick(c);
-    }, everyMs);
-    watchVisibility();
+    c.stop = scheduler.every(everyMs, () => {
+      if (!pageHidden()) tick(scheduler, c);
+    });
+    watchVisibility(scheduler);
   }
   return () => {
     c.listeners.delete(listener);
-    if (c.listeners.size === 0 && c.timer !== null) {
-      clearInterval(c.timer);
-      c.timer = null;
+    if (c.listeners.size === 0 && c.stop !== null) {
+      c.stop();
+      c.stop = null;
     }
   };
 }
 
 /** The time now, updated every `everyMs` by the shared clock of that period. */
 export function useNow(everyMs = 1000): number {
-  const subscribe = useCallback((l: () => void) => subscribeClock(everyMs, l), [everyMs]);
-  return useSyncExternalStore(subscribe, () => clockOf(everyMs).now);
+  const scheduler = useScheduler();
+  const subscribe = useCallback(
+    (l: () => void) => subscribeClock(scheduler, everyMs, l),
+    [scheduler, everyMs],
+  );
+  return useSyncExternalStore(subscribe, () => clockOf(scheduler, everyMs).now);
 }
 
 /** Something that tells when it changed (a zustand store). */

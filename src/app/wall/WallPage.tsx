@@ -5,7 +5,7 @@ import { familyLabel } from '../../controllers';
 import { authStore } from '../../fleet/auth';
 import { linkWords } from '../../fleet/contract';
 import { fleetStore, getRuntime, type MachineRuntime } from '../../fleet/fleet';
-import { useDerived, useNow, useSnapshot } from '../../fleet/react';
+import { useDerived, useNow, useScheduler, useSnapshot } from '../../fleet/react';
 import { mostSevereAlarm, type MachineInfo } from '../../fleet/types';
 import { Badge, ProgressBar, formatTime } from '../../ui';
 import { useJobWords } from '../../fleet/job-facts';
@@ -96,14 +96,13 @@ function Wall({ machines }: { machines: MachineInfo[] }) {
   const inAlarm = kept.current;
   const [chosen, setChosen] = useState<string | null>(null);
   const spot = spotlightNow(inAlarm, chosen);
+  const scheduler = useScheduler();
   useEffect(() => {
     if (inAlarm.length === 0) return;
-    const t = setInterval(
-      () => setChosen((c) => nextSpotlight(inAlarm, spotlightNow(inAlarm, c))),
-      SPOTLIGHT_MS,
+    return scheduler.every(SPOTLIGHT_MS, () =>
+      setChosen((c) => nextSpotlight(inAlarm, spotlightNow(inAlarm, c))),
     );
-    return () => clearInterval(t);
-  }, [inAlarm]);
+  }, [inAlarm, scheduler]);
   const spotInfo = spot ? machines.find((m) => m.id === spot) : undefined;
   const [grouping, setGrouping] = useWallGrouping();
   const present = useSomeoneAtTheScreen();
@@ -259,15 +258,20 @@ const PRESENT_MS = 15_000;
  */
 function useSomeoneAtTheScreen(): boolean {
   const [present, setPresent] = useState(false);
+  const scheduler = useScheduler();
   useEffect(() => {
-    let timer: ReturnType<typeof setTimeout> | null = null;
-    const arm = () => {
-      if (timer) clearTimeout(timer);
-      timer = setTimeout(() => {
-        timer = null;
+    // One deadline that each sign of someone moves on (not a timer per pointer move).
+    let lastSeen = 0;
+    const away = scheduler.deadline({
+      due: () => lastSeen + PRESENT_MS,
+      fire: () => {
         if (document.activeElement?.closest('.wall-view')) arm();
         else setPresent(false);
-      }, PRESENT_MS);
+      },
+    });
+    const arm = () => {
+      lastSeen = scheduler.now();
+      away.update();
     };
     const seen = () => {
       setPresent(true);
@@ -283,9 +287,9 @@ function useSomeoneAtTheScreen(): boolean {
       window.removeEventListener('pointermove', moved);
       window.removeEventListener('pointerdown', seen);
       window.removeEventListener('keydown', seen);
-      if (timer) clearTimeout(timer);
+      away.cancel();
     };
-  }, []);
+  }, [scheduler]);
   return present;
 }
 

@@ -1,9 +1,10 @@
 import type { StoreApi } from 'zustand/vanilla';
-import type { AnyCommand, CommandDecl } from '../../fleet/commands';
+import type { AnyCommand } from '../../fleet/commands';
 import type { LinkTracker, SessionContext } from '../../fleet/contract';
 import { describeError, LinkError } from '../../fleet/errors';
-import { KernelSession, type RunToken } from '../../fleet/kernel';
-import { gridDelay, type Poller, type SocketLink } from '../../fleet/link';
+import type { RunToken } from '../../fleet/kernel';
+import { DuetPageApi } from './page-api';
+import type { Poller, SocketLink } from '../../fleet/link';
 import { DuetClient, isAuthError } from './client';
 import {
   asLinkFault,
@@ -13,89 +14,57 @@ import {
   quickBackoff,
   quickRetry,
 } from '../../fleet/faults';
-import { declareCommands, uploadCommandFor, type DuetCommands, type FileArgs } from './commands';
+import { declareCommands, type DuetCommands } from './commands';
 import { ModelIngest } from './ingest';
 import type { JsonObject } from './patch';
-import { DEFAULT_HEIGHT_MAP, DuetReads, dirKey, type Reader } from './reads';
+import { DuetReads, type Reader } from './reads';
 import { createDuetStore, type DuetState } from './state';
+import {
+  AckPacer,
+  pollSilentError,
+  Resync,
+  SocketDown,
+  socketCloseError,
+  socketDeadError,
+} from './socket-rules';
+import {
+  DEAD_AFTER_MS,
+  FIRST_MODEL_MS,
+  NOOP_EVERY_MS,
+  PASSWORD_REFUSED,
+  PING_AFTER_MS,
+  POLL_EVERY_MS,
+  POLL_SILENT_MS,
+  RRF_POLL_MS,
+  RRF_TILE_POLL_MS,
+} from './timing';
 import { DuetUploads } from './uploads';
-import type { DirEntry, HeightMap, ParsedFileInfo } from './wire';
 
 export { messageBoxReply, validateBoxValue } from './commands';
+export {
+  DEAD_AFTER_MS,
+  FIRST_MODEL_MS,
+  NOOP_EVERY_MS,
+  PASSWORD_REFUSED,
+  PING_AFTER_MS,
+  POLL_AFTER_MS,
+  POLL_EVERY_MS,
+  POLL_SILENT_MS,
+  RESYNC_EVERY_MS,
+  RRF_POLL_MS,
+  RRF_TILE_POLL_MS,
+  TILE_ACK_MS,
+} from './timing';
 export { HISTORY_POINTS, type CodeArgs, type DuetState, type UploadState } from './state';
 
 /**
- * One Duet (DSF) machine on the session kernel: `GET /machine/connect` (through the gateway: no
- * key, the gateway holds the DSF session; a key only where msw answers, in tests), then `WS /machine` for
- * the object model (full model, then patches, `OK\n` after each). The socket's liveness is its
- * declared heartbeat: `PING\n` after 2 s of silence, dead when nothing answers within 2.5 s more
- * (or when the first model is 6 s late), then the socket reconnects on its backoff. Session
- * problems (a refused upgrade, 401/403) renew the session silently once, then show "needs
- * login". Close codes 1001/1011 mean the DSF service (or the link to it) is down; 1007 that the
- * console server refused a frame of the Duet's. While the socket stays down, the model is polled
- * (`GET /machine/model`) and the session kept alive (`GET /machine/noop`).
- *
- * Bad data (issue 15): a frame that is no JSON object, nests too deep, or would make the model
- * invalid is dropped, shown as a protocol error and logged; the last valid model stays, and a new
- * socket reads the model whole again (at most every RESYNC_EVERY_MS). The session lives on.
- *
+ * One Duet (DSF) machine on the session kernel: `GET /machine/connect`, then `WS /machine` for the
+ * object model (full model, then patches, `OK\n` after each) under a PING heartbeat; the model
+ * polled and the session kept alive while the socket is down; a standalone board (`rr_*`) polled.
+ * Close codes, re-login, bad data and liveness: README "Decisions where the document is silent".
  * The console history is the machine's log (ctx.log), which outlives sockets and reconnects.
  */
-
-/**
- * Liveness (issue 15: a silent link is down within 5 s): `PING\n` after 2 s without a frame (the
- * rule is checked every 0.5 s), and dead when nothing answers within 2.5 s more. Through the
- * console server a PING is answered by the server itself, which keeps the one socket to DSF and
- * pings it on its own (sharing.ts `ping`, gateway/streams.ts): a Duet silent for 4.5 s is noticed
- * there and every page socket closed (1011), which this session shows as the link down. The
- * protocol document says updates may pause ("if the client does not receive an update for a
- * while"), so silence without a PING is not death. While the model is polled instead, a poll
- * that fails or no polled model for POLL_SILENT_MS is the link down.
- */
-export const PING_AFTER_MS = 2000;
-export const DEAD_AFTER_MS = 2500;
-/** From connecting to the full model. */
-export const FIRST_MODEL_MS = 6000;
-/**
- * The DSF refused the credentials that are not this page's (the machine's configured password, or
- * none): why, what to do, and that it is tried again on its own.
- */
-export const PASSWORD_REFUSED =
-  'The Duet refused the password (HTTP 403): check this machine\'s "password" in the machines file, or log in here. It is tried again on its own, at most once a minute.';
-export const NOOP_EVERY_MS = 4000;
-/** While the socket cannot be opened, the object model is polled this often (`GET /machine/model`). */
-export const POLL_EVERY_MS = 2000;
-/** Polling starts only when the socket has been down this long (a quick reconnect needs none). */
-export const POLL_AFTER_MS = 5000;
-/**
- * While the model is polled, no good answer for this long is silence: the link is down (issue 15:
- * within 5 s). Two polls missed, and a little slack.
- */
-export const POLL_SILENT_MS = 4500;
-/**
- * A dropped frame (bad data) makes the model read again by a new socket (its first frame is the
- * full model), at most this often: bad data on every frame must not churn sockets.
- */
-export const RESYNC_EVERY_MS = 10_000;
-/**
- * A standalone board (RepRapFirmware without an SBC, `rr_*`): the model is polled this often
- * (Duet Web Control polls every 250 ms from each page; through the console server one session
- * serves every viewer, and a board has few HTTP connections: once a second). It also keeps the
- * session, which RRF drops after 8 s of silence.
- */
-export const RRF_POLL_MS = 1000;
-/** A standalone board shown only on a tile (no page of it open): `rr_model` at the tile's pace. */
-export const RRF_TILE_POLL_MS = 2000;
-/**
- * Shown only on a tile, the socket's model updates come at most this often: the `OK` that asks
- * for the next patch waits until this long after the last one. The sender (DSF, or the console
- * server's shared socket) then sends one patch with every change made meanwhile, so nothing is
- * lost, and an idle fleet page is not woken four times a second per printer (issue 16). On the
- * machine's page every patch is acknowledged at once, as Duet Web Control does.
- */
-export const TILE_ACK_MS = 1000;
-
-export class DuetSession extends KernelSession {
+export class DuetSession extends DuetPageApi {
   readonly client: DuetClient;
   readonly store: StoreApi<DuetState>;
   /** On-demand reads (listings, file info, height map) as queries of this machine. */
@@ -104,11 +73,10 @@ export class DuetSession extends KernelSession {
   readonly commands: Readonly<Record<string, AnyCommand>>;
 
   private readonly ingest: ModelIngest;
-  private readonly uploads: DuetUploads;
+  protected readonly uploads: DuetUploads;
   private readonly socket: { current: () => SocketLink | null };
-  /** When the last `OK` went (tile pacing), and whether one waits to go. */
-  private lastAckAt = 0;
-  private ackWaiting: { generation: number } | null = null;
+  /** The `OK` after each frame (paced on a tile). */
+  private readonly acks: AckPacer;
   /** `GET /machine/model` while the socket has been down for POLL_AFTER_MS. */
   private readonly modelPoll: Poller;
   /** `GET /machine/noop` while the socket is down (and the model is not polled yet). */
@@ -117,9 +85,8 @@ export class DuetSession extends KernelSession {
   private readonly rrfPoll: Poller;
   /** The current socket delivered its full model (later frames are patches). */
   private gotFirst = false;
-  /** Since when the socket does not deliver (null: it does, or it was never opened). */
-  private socketDownSince: number | null = null;
-  private lastPollOkAt = 0;
+  /** Since when the socket does not deliver, and the polled model meanwhile. */
+  private readonly down: SocketDown;
   private authRetried = false;
   /** Typed into the login form on this page; undefined: the credentials are the gateway's. */
   private password: string | undefined;
@@ -130,14 +97,14 @@ export class DuetSession extends KernelSession {
   private connecting: { run: RunToken; done: Promise<boolean> } | null = null;
   /** While the model is polled, its answers must keep coming (POLL_SILENT_MS). */
   private readonly pollLiveness: Liveness;
-  /** The last model re-read after a dropped frame, and whether one is waiting its turn. */
-  private lastResyncAt = -Infinity;
-  private resyncDue = false;
+  /** The model read again by a new socket after a dropped frame. */
+  private readonly resyncs: Resync;
 
   constructor(ctx: SessionContext) {
     super(ctx);
     this.client = new DuetClient(ctx.machine.id);
     this.store = createDuetStore();
+    this.down = new SocketDown(ctx.now);
     this.ingest = new ModelIngest({
       ctx,
       tracker: this.tracker,
@@ -146,7 +113,7 @@ export class DuetSession extends KernelSession {
         this.authRetried = false;
         this.authRefusals = 0;
       },
-      resync: () => this.resync(),
+      resync: () => this.resyncs.request(),
     });
     const read: Reader = (fn, signal) => this.read(fn, signal);
     this.reads = new DuetReads(ctx.queries, this.client, read);
@@ -191,6 +158,23 @@ export class DuetSession extends KernelSession {
         onDead: (why) => this.onSocketDead(why),
       },
     }));
+    this.acks = new AckPacer(
+      ctx,
+      () => this.socket.current(),
+      (fn, ms) => this.later(fn, ms),
+    );
+    this.resyncs = new Resync({
+      now: ctx.now,
+      later: (fn, ms) => this.later(fn, ms),
+      started: () => this.started,
+      reconnect: () => {
+        const socket = this.socket.current();
+        if (!socket || this.down.since !== null || this.tracker.state === 'needs-login') return;
+        this.ctx.log.add('debug', 'link', 'Reading the object model again (new socket)');
+        this.gotFirst = false;
+        socket.connect();
+      },
+    });
     // Fallback while the socket cannot be opened (a proxy without WebSocket, a socket refused):
     // the full model by HTTP. A read, never two at once, dropped once the socket delivers again.
     this.modelPoll = this.poll({
@@ -214,7 +198,7 @@ export class DuetSession extends KernelSession {
       apply: () => undefined,
       intervalMs: () => NOOP_EVERY_MS,
       firstDelayMs: NOOP_EVERY_MS,
-      when: () => this.socketDownSince !== null && this.sessionUsable() && !this.pollDue(),
+      when: () => this.down.since !== null && this.sessionUsable() && !this.pollDue(),
       failed: (e) => this.sideReadFailed(e, NOOP_EVERY_MS),
     });
     this.rrfPoll = this.poll({
@@ -248,12 +232,11 @@ export class DuetSession extends KernelSession {
   }
 
   protected override onStop(): void {
-    this.resyncDue = false;
+    this.resyncs.reset();
     this.uploads.stopAll();
     this.connecting = null;
     this.gotFirst = false;
-    this.socketDownSince = null;
-    this.lastPollOkAt = 0;
+    this.down.back();
     if (this.client.connected) void this.client.disconnect().catch(() => undefined);
   }
 
@@ -349,35 +332,13 @@ export class DuetSession extends KernelSession {
   private onSocketClose(code: number, reason: string): boolean {
     const hadModel = this.gotFirst;
     this.gotFirst = false;
-    if (code === 1008 || code === 4403) {
+    const closed = socketCloseError(code, reason, hadModel);
+    if (closed.refused) {
       // DSF refuses the upgrade with 403 when the key is bad: a new session first, then a socket.
-      this.authFailure(new LinkError('http', `socket refused (${reason || code})`, { status: 403 }));
+      this.authFailure(closed.error);
       return false;
     }
-    const why = reason ? `: ${reason}` : '';
-    if (code === 1007) {
-      // The console server refused a frame of the Duet's (bad data): shown as such; the socket
-      // reconnects and the full model is read again.
-      this.socketFailed(
-        new LinkError('protocol', `WS /machine: the Duet sent data the console cannot use${why}`, {
-          path: '(root)',
-        }),
-      );
-      return true;
-    }
-    this.socketFailed(
-      code === 1001 || code === 1011
-        ? // DSF's own "going away / unavailable", or the console server closing for a Duet that
-          // stopped answering: the link is down either way (never a verdict on the Duet).
-          new LinkError(
-            'network',
-            `The Duet service (DSF) or the link to it is down: socket closed with ${code}${reason ? ` (${reason})` : ''}`,
-          )
-        : new LinkError(
-            'network',
-            `Socket closed (${code}${why})${hadModel ? '' : ' before the object model arrived'}`,
-          ),
-    );
+    this.socketFailed(closed.error);
     return true;
   }
 
@@ -385,12 +346,7 @@ export class DuetSession extends KernelSession {
   private onSocketDead(why: string): void {
     const hadModel = this.gotFirst;
     this.gotFirst = false;
-    this.socketFailed(
-      new LinkError(
-        'timeout',
-        hadModel ? `${why}: the link is dead` : `The object model did not arrive (${why.toLowerCase()})`,
-      ),
-    );
+    this.socketFailed(socketDeadError(why, hadModel));
   }
 
   /**
@@ -399,37 +355,25 @@ export class DuetSession extends KernelSession {
    * its own backoff either way.
    */
   private socketFailed(err: LinkError): void {
-    if (this.socketDownSince === null) {
-      this.socketDownSince = this.ctx.now();
+    if (this.down.failed()) {
       // Without the socket the session is kept by requests: one now (a gateway that holds the
       // session learns from its answer whether the session expired, and renews it).
       this.noopPoll.kick();
     }
     this.store.setState({ socketProblem: err.message });
-    if (!this.pollingHealthy()) this.tracker.fail(err);
-  }
-
-  private pollingHealthy(): boolean {
-    return this.lastPollOkAt > 0 && this.ctx.now() - this.lastPollOkAt < POLL_SILENT_MS;
+    if (!this.down.pollingHealthy()) this.tracker.fail(err);
   }
 
   /** The model is polled in place of the socket (the data comes from there). */
   private polling(): boolean {
-    return this.socketDownSince !== null && this.store.getState().transport === 'polling';
+    return this.down.since !== null && this.store.getState().transport === 'polling';
   }
 
   /** No polled model for POLL_SILENT_MS while it is the source: the link is down. */
   private pollSilent(quietMs: number): void {
     const standalone = this.client.standalone && this.client.connected;
     if (!(this.polling() || standalone) || this.tracker.state !== 'online') return;
-    this.tracker.fail(
-      new LinkError(
-        'timeout',
-        `No answer from the Duet for ${Math.round(quietMs / 1000)} s (${
-          standalone ? 'GET /rr_model' : 'GET /machine/model; the live socket is down'
-        })`,
-      ),
-    );
+    this.tracker.fail(pollSilentError(quietMs, standalone));
   }
 
   /**
@@ -443,8 +387,7 @@ export class DuetSession extends KernelSession {
   }
 
   private pollDue(): boolean {
-    const down = this.socketDownSince;
-    return down !== null && this.ctx.now() - down >= POLL_AFTER_MS && this.sessionUsable();
+    return this.down.pollTime() && this.sessionUsable();
   }
 
   /** A poll or noop failed: not a link failure (the socket decides); a dead session is renewed. */
@@ -464,8 +407,7 @@ export class DuetSession extends KernelSession {
     if (frame) {
       if (!this.gotFirst) {
         // The socket is live again: polling ends.
-        this.socketDownSince = null;
-        this.lastPollOkAt = 0;
+        this.down.back();
         this.ingest.socketBack();
         this.store.setState({ transport: 'socket', socketProblem: null });
       }
@@ -473,62 +415,12 @@ export class DuetSession extends KernelSession {
       this.gotFirst = true;
     }
     // Acknowledge: the server sends nothing more until it has our OK (paced on a tile).
-    this.acknowledge();
-  }
-
-  /** The `OK` after a frame: at once on the machine's page, at the tile's pace otherwise. */
-  private acknowledge(): void {
-    const socket = this.socket.current();
-    if (!socket) return;
-    // One `OK` per frame: the sender waits for it, so at most one is ever waiting per socket.
-    if (this.ackWaiting?.generation === socket.generation) return;
-    const now = this.ctx.now();
-    // On the grid of the tiles' polls (gridDelay), the next grid moment after the last `OK`.
-    const wait = this.ctx.detail()
-      ? 0
-      : gridDelay(Math.max(now, this.lastAckAt), TILE_ACK_MS) + Math.max(0, this.lastAckAt - now);
-    if (wait <= 0) {
-      this.ackWaiting = null;
-      this.lastAckAt = now;
-      socket.send('OK\n');
-      return;
-    }
-    const mine = { generation: socket.generation };
-    this.ackWaiting = mine;
-    this.later(() => {
-      if (this.ackWaiting !== mine) return;
-      this.ackWaiting = null;
-      // Only on the socket that sent the frame: a new socket starts with a full model of its own.
-      if (this.socket.current() !== socket || socket.generation !== mine.generation) return;
-      this.lastAckAt = this.ctx.now();
-      socket.send('OK\n');
-    }, wait);
-  }
-
-  /**
-   * A frame was dropped (bad data: shown as a protocol error, logged): the model may now differ
-   * from the machine's. A new socket reads it whole (DSF sends the full model first), now or when
-   * RESYNC_EVERY_MS has passed since the last time; the session and its link stay as they are.
-   */
-  private resync(): void {
-    if (this.resyncDue || !this.started) return;
-    this.resyncDue = true;
-    const wait = Math.max(0, this.lastResyncAt + RESYNC_EVERY_MS - this.ctx.now());
-    this.later(() => {
-      if (!this.resyncDue) return;
-      this.resyncDue = false;
-      this.lastResyncAt = this.ctx.now();
-      const socket = this.socket.current();
-      if (!socket || this.socketDownSince !== null || this.tracker.state === 'needs-login') return;
-      this.ctx.log.add('debug', 'link', 'Reading the object model again (new socket)');
-      this.gotFirst = false;
-      socket.connect();
-    }, wait);
+    this.acks.acknowledge();
   }
 
   private onPolledModel(raw: JsonObject): void {
-    if (this.socketDownSince === null) return; // the socket is back: it is the source
-    this.lastPollOkAt = this.ctx.now();
+    if (this.down.since === null) return; // the socket is back: it is the source
+    this.down.polledOk();
     this.pollLiveness.heard();
     if (this.store.getState().transport !== 'polling') {
       this.ctx.log.add('warning', 'link', 'Live updates unavailable: polling GET /machine/model');
@@ -560,7 +452,7 @@ export class DuetSession extends KernelSession {
   // ------------------------------------------------------------------ requests
 
   /** A read: on 401/403 reconnect (once) and try once more. */
-  private async read<T>(fn: (signal: AbortSignal) => Promise<T>, signal: AbortSignal): Promise<T> {
+  protected async read<T>(fn: (signal: AbortSignal) => Promise<T>, signal: AbortSignal): Promise<T> {
     try {
       return await fn(signal);
     } catch (e) {
@@ -592,58 +484,5 @@ export class DuetSession extends KernelSession {
       }
       throw e;
     }
-  }
-
-  // ------------------------------------------------------------------ files and page state
-
-  /** Which upload command applies to a directory (operator only into the jobs folder). */
-  uploadCommandFor(dir: string): CommandDecl<FileArgs> {
-    return uploadCommandFor(this.cmd, dir);
-  }
-
-  cancelUpload(id: number): void {
-    this.uploads.cancel(id);
-  }
-
-  /** Shows `dir` in the Files tab (its listing is a query the tab reads). */
-  openDir(dir: string): void {
-    this.store.setState({ filesDir: dir });
-  }
-
-  /** Shows `dir` and reads its listing (cached for DIR_STALE_MS). */
-  loadDir(dir: string): Promise<DirEntry[]> {
-    this.openDir(dir);
-    return this.reads.listDir(dir);
-  }
-
-  /** Reads the shown folder again. */
-  refreshDir(): Promise<void> {
-    return this.ctx.queries.invalidate(dirKey(this.store.getState().filesDir));
-  }
-
-  loadFileInfo(path: string): Promise<ParsedFileInfo> {
-    return this.reads.loadFileInfo(path);
-  }
-
-  /** The height map `move.compensation.file` names (default `0:/sys/heightmap.csv`). */
-  heightMapPath(): string {
-    return this.store.getState().model?.move.compensation?.file ?? DEFAULT_HEIGHT_MAP;
-  }
-
-  loadHeightMap(): Promise<HeightMap> {
-    return this.reads.loadHeightMap(this.heightMapPath());
-  }
-
-  download(path: string): Promise<Blob> {
-    return this.read((signal) => this.client.download(path, signal), this.signal);
-  }
-
-  dismissBox(seq: number): void {
-    this.store.setState((s) => ({ dismissedBoxes: [...s.dismissedBoxes.slice(-20), seq] }));
-  }
-
-  /** Show a hidden message box again. */
-  reopenBox(seq: number): void {
-    this.store.setState((s) => ({ dismissedBoxes: s.dismissedBoxes.filter((d) => d !== seq) }));
   }
 }

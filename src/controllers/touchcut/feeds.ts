@@ -144,7 +144,7 @@ export class ScreenshotFeed {
   }));
   private readonly subs = new Map<number, number>();
   private nextId = 0;
-  private timer: ReturnType<typeof setTimeout> | null = null;
+  private timer: ReturnType<Lifecycle['setTimeout']> = null;
   private inFlight = false;
   private lastStart: number | null = null;
   private unsubscribeVis: (() => void) | null = null;

@@ -1,6 +1,7 @@
 import { useCallback, useSyncExternalStore } from 'react';
 import type { AnyCommand, CommandDecl, CommandRunner, Subscribable } from '../commands';
 import type { MachineSnapshot } from '../types';
+import { useScheduler } from './use-scheduler';
 
 /** A store as a command reads it: its state and its changes (a zustand store fits). */
 export interface Readable<T> extends Subscribable {
@@ -69,19 +70,22 @@ export function useBlockedReason<A>(
   command: CommandDecl<A>,
 ): string | null {
   const needs = command.needs;
+  const scheduler = useScheduler();
   const subscribe = useCallback(
     (listener: () => void) => {
-      let timer: ReturnType<typeof setTimeout> | null = null;
+      // The moment the data goes stale: a deadline that fresh data moves on (no timer each).
+      let staleAt: number | null = null;
+      const stale = scheduler.deadline({
+        due: () => staleAt,
+        fire: () => {
+          listener();
+          arm();
+        },
+      });
       const arm = (): void => {
-        if (timer) clearTimeout(timer);
-        timer = null;
         const ms = runner.msUntilInDoubt();
-        if (ms !== null)
-          timer = setTimeout(() => {
-            timer = null;
-            listener();
-            arm();
-          }, ms + 1);
+        staleAt = ms === null ? null : scheduler.now() + ms + 1;
+        stale.update();
       };
       const changed = (): void => {
         listener();
@@ -92,10 +96,10 @@ export function useBlockedReason<A>(
       arm();
       return () => {
         unsubs.forEach((u) => u());
-        if (timer) clearTimeout(timer);
+        stale.cancel();
       };
     },
-    [runner, snapshot, needs],
+    [runner, snapshot, needs, scheduler],
   );
   const read = () => runner.blockedReason(command);
   return useSyncExternalStore(subscribe, read, read);

@@ -17,3 +17,14 @@ export {
   type QueryView,
   type QueryWatch,
 } from './query';
+export {
+  Deadline,
+  ManualClock,
+  pageScheduler,
+  pageTimers,
+  Scheduler,
+  type Cancel,
+  type DeadlineSpec,
+  type TimerHost,
+} from './scheduler';
+export { SchedulerContext, useScheduler } from './use-scheduler';

@@ -1,12 +1,15 @@
+import { Deadline, pageScheduler, type Cancel, type DeadlineSpec, type Scheduler } from './scheduler';
+
 /**
  * A session's lifecycle: one run between `start()` and `stop()`. Each run has its own
  * AbortController (requests pass `signal` and are cancelled on stop) and its own timer registry
- * (every timer set through it is cleared on stop). Work that outlives its run cannot write:
- * `guard(fn)` and `current()` tie a callback to the run that made it, so an answer arriving
- * after stop (or after stop and a new start) is dropped instead of written.
+ * (every timer set through it is cleared on stop; the timers are the scheduler's). Work that
+ * outlives its run cannot write: `guard(fn)` and `current()` tie a callback to the run that made
+ * it, so an answer arriving after stop (or after stop and a new start) is dropped.
  */
 
-type Handle = ReturnType<typeof setTimeout>;
+/** A timer of a run (clear it with the run's `clearTimeout`/`clearInterval`). */
+export type Handle = { readonly cancel: Cancel };
 
 /** The run a callback belongs to: `alive()` is false once that run stopped. */
 export interface RunToken {
@@ -25,6 +28,8 @@ export class Lifecycle {
   private readonly timeouts = new Set<Handle>();
   private readonly intervals = new Set<Handle>();
   private cleanups: Array<() => void> = [];
+
+  constructor(readonly scheduler: Scheduler = pageScheduler) {}
 
   /** True between start() and stop(). */
   get running(): boolean {
@@ -50,8 +55,8 @@ export class Lifecycle {
     if (!ctrl) return;
     this.ctrl = null;
     this.generation++;
-    for (const t of this.timeouts) clearTimeout(t);
-    for (const t of this.intervals) clearInterval(t);
+    for (const t of this.timeouts) t.cancel();
+    for (const t of this.intervals) t.cancel();
     this.timeouts.clear();
     this.intervals.clear();
     const cleanups = this.cleanups.reverse();
@@ -86,32 +91,49 @@ export class Lifecycle {
   setTimeout(fn: () => void, ms: number): Handle | null {
     if (!this.ctrl) return null;
     const guarded = this.guard(fn);
-    const t: Handle = setTimeout(() => {
-      this.timeouts.delete(t);
-      guarded();
-    }, ms);
+    const t: Handle = {
+      cancel: this.scheduler.after(ms, () => {
+        this.timeouts.delete(t);
+        guarded();
+      }),
+    };
     this.timeouts.add(t);
     return t;
   }
 
   clearTimeout(t: Handle | null): void {
     if (t === null) return;
-    clearTimeout(t);
+    t.cancel();
     this.timeouts.delete(t);
   }
 
-  /** An interval of this run, cleared on stop. */
+  /** An interval of this run, cleared on stop: the scheduler's shared tick of that period. */
   setInterval(fn: () => void, ms: number): Handle | null {
     if (!this.ctrl) return null;
-    const t: Handle = setInterval(this.guard(fn), ms);
+    const t: Handle = { cancel: this.scheduler.every(ms, this.guard(fn)) };
     this.intervals.add(t);
     return t;
   }
 
   clearInterval(t: Handle | null): void {
     if (t === null) return;
-    clearInterval(t);
+    t.cancel();
     this.intervals.delete(t);
+  }
+
+  /**
+   * A deadline of this run (see `Deadline`): its timer is one of this run's (`setTimeout`), so it
+   * is cleared on stop and never fires after it; `update(true)` after a new start sets it again.
+   */
+  deadline(spec: DeadlineSpec): Deadline<Handle> {
+    return new Deadline<Handle>(
+      {
+        now: () => this.scheduler.now(),
+        set: (fn, ms) => this.setTimeout(fn, ms),
+        clear: (h) => this.clearTimeout(h),
+      },
+      spec,
+    );
   }
 
   /** Runs `fn` when this run stops (unsubscribe, close a socket). Runs at once when stopped. */

@@ -123,6 +123,7 @@ export abstract class KernelSession implements MachineSession {
       // Shown only on a tile: on the page's shared grid, so the fleet's answers come together.
       aligned: () => !this.ctx.detail(),
       now: this.ctx.now,
+      scheduler: this.life.scheduler,
     });
     this.pollers.push({ poller, firstDelayMs: spec.firstDelayMs ?? 0 });
     return poller;
@@ -139,6 +140,7 @@ export abstract class KernelSession implements MachineSession {
         const o = options();
         const run = this.life.current();
         return new SocketLink({
+          scheduler: this.life.scheduler,
           ...o,
           onOpen: o.onOpen && (() => run.alive() && o.onOpen?.()),
           onMessage: (d) => {

@@ -1,6 +1,6 @@
 import { useEffect, useMemo, useRef, useState, type ReactNode } from 'react';
 import { ESTOP_QUESTION, ESTOP_SAID, useEstopConfirm } from '../../../fleet/estop-confirm';
-import { CommandButton, useSnapshot, useStoreSelect } from '../../../fleet/react';
+import { CommandButton, useScheduler, useSnapshot, useStoreSelect } from '../../../fleet/react';
 import { Button, Dialog, Field, Notice } from '../../../ui';
 import { imageDataUrl } from '../../../ui/safe-url';
 import type { DuetSession } from '../session';
@@ -157,15 +157,14 @@ function MessageBoxBody(props: {
   const value = box.mode === 4 ? choice : checked && 'value' in checked ? checked.value : undefined;
   const cmd = session.cmd.answer;
   const [remaining, setRemaining] = useState<number | null>(box.timeout > 0 ? box.timeout : null);
+  const scheduler = useScheduler();
   useEffect(() => {
     if (box.timeout <= 0) return;
-    const started = Date.now();
-    const t = setInterval(
-      () => setRemaining(Math.max(0, Math.ceil(box.timeout - (Date.now() - started) / 1000))),
-      500,
+    const started = scheduler.now();
+    return scheduler.every(500, () =>
+      setRemaining(Math.max(0, Math.ceil(box.timeout - (scheduler.now() - started) / 1000))),
     );
-    return () => clearInterval(t);
-  }, [box.timeout]);
+  }, [box.timeout, scheduler]);
   const okLabel = box.mode === 1 ? 'Close' : 'OK';
   const showCancel = box.mode === 3 || (box.cancelButton && box.mode >= 2);
   const axisList = useStoreSelect(session.store, (s) => s.model?.move.axes ?? null);
