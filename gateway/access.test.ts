@@ -342,12 +342,29 @@ describe('audit endpoints', () => {
         total: number;
       };
     const all = await get('');
-    expect(all.entries.map((e) => e.type)).toEqual(['command', 'login', 'refused', 'command', 'login']);
-    expect((await get('?result=refused')).entries.map((e) => e.label)).toEqual(['change settings']);
+    // Newest first; the operator's own look at the audit log is the refused one on top.
+    expect(all.entries.map((e) => e.type)).toEqual([
+      'refused',
+      'command',
+      'login',
+      'refused',
+      'command',
+      'login',
+    ]);
+    expect(all.entries[0]).toMatchObject({
+      user: 'otto',
+      method: 'GET',
+      path: '/api/audit',
+      role: 'supervisor',
+    });
+    expect((await get('?result=refused')).entries.map((e) => e.label ?? e.path)).toEqual([
+      '/api/audit',
+      'change settings',
+    ]);
     expect((await get('?machine=p2')).total).toBe(1);
-    expect((await get('?user=otto')).total).toBe(3);
-    const page = await get('?offset=1&limit=2');
-    expect(page.total).toBe(5);
+    expect((await get('?user=otto')).total).toBe(4);
+    const page = await get('?offset=2&limit=2');
+    expect(page.total).toBe(6);
     expect(page.entries.map((e) => e.type)).toEqual(['login', 'refused']);
     const to = new Date(s.clock.t - 1).toISOString();
     expect((await get(`?to=${encodeURIComponent(to)}`)).total).toBe(0);
@@ -366,6 +383,6 @@ describe('audit endpoints', () => {
     expect([...bytes.slice(0, 3)]).toEqual([0xef, 0xbb, 0xbf]); // UTF-8 BOM: spreadsheets read it as UTF-8
     const lines = new TextDecoder().decode(bytes).trim().split('\r\n');
     expect(lines[0]).toMatch(/^time,type,result,user/);
-    expect(lines).toHaveLength(4);
+    expect(lines).toHaveLength(5); // the header and otto's four entries
   });
 });

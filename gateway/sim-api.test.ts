@@ -288,7 +288,12 @@ describe('attacks on /api/sim/<id> (secured mode)', () => {
     const sam = await login(s.gw.url, 'sam', PW.sam);
     expect(valueOf(await panel(await get(s, 'demo', sam)), 'faults', 'drop')).toBe(false);
     const refused = s.audit().filter((e) => e.type === 'refused');
-    expect(refused).toHaveLength(6);
+    // Three changes and one read, for each of the two.
+    expect(refused).toHaveLength(8);
+    expect(refused.filter((e) => e.method === 'GET').map((e) => [e.user, e.path])).toEqual([
+      ['vera', '/api/sim/demo'],
+      ['otto', '/api/sim/demo'],
+    ]);
     expect(refused[0]).toMatchObject({
       result: 'refused',
       user: 'vera',

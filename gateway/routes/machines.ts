@@ -94,7 +94,7 @@ export function machinesRoutes(s: MachinesServices): ApiRoute[] {
     notAllowed: 'GET or POST',
     handle: (req, res, call) => simApi(req, res, call.params.id ?? '', call.principal),
   } satisfies Partial<ApiRoute>;
-  /** The refusals of a change to a simulator are audited (of a read not). */
+  /** A refused change to a simulator names its machine (a refused read is written with its path). */
   const simRefusal = (call: RouteCall) => {
     const id = decodeSegment(call.params.id ?? '');
     return { machine: s.byId.has(id) ? id : undefined, path: simAuditPath(id) };

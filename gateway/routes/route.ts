@@ -66,8 +66,9 @@ export interface GuardedRoute extends RouteBase {
   /** The session counts as active (`who(req, true)`). */
   touch?: boolean;
   /**
-   * Refusals (401 and 403) are written to the audit log as `refused` entries with these fields;
-   * absent: refusals are not audited.
+   * Refusals (401 and 403) are written to the audit log as `refused` entries with these fields.
+   * Absent: a 403 (someone signed in asking past their role) is written with the request's path,
+   * a 401 is not. Refusals are limited per user or address (refusals.ts).
    */
   auditRefusal?: (call: RouteCall) => { machine?: string; path: string };
   handle(req: IncomingMessage, res: ServerResponse, call: GuardedCall): Promise<void> | void;
@@ -125,9 +126,9 @@ export function dispatcher(routes: readonly ApiRoute[], guard: Guard) {
       }
       const w = who(req, route.touch === true);
       const p = w.principal;
-      const refuse = (error: string): void => {
+      const refuse = (error: string, signedIn: boolean): void => {
         req.resume();
-        const where = route.auditRefusal?.(call);
+        const where = route.auditRefusal?.(call) ?? (signedIn ? { path: url.pathname } : null);
         if (!where) return;
         record({
           type: 'refused',
@@ -144,14 +145,14 @@ export function dispatcher(routes: readonly ApiRoute[], guard: Guard) {
         });
       };
       if (!p) {
-        refuse(w.expired ? 'session expired' : 'not logged in');
+        refuse(w.expired ? 'session expired' : 'not logged in', false);
         needLogin(res, w);
         return;
       }
       if (!roleAtLeast(p.role, route.role)) {
         const r = route.refusal;
         const error = typeof r === 'function' ? r(p) : (r ?? `this needs a ${route.role}`);
-        refuse(error);
+        refuse(error, true);
         sendJson(res, 403, { error, needs: route.role });
         return;
       }
