@@ -20,7 +20,7 @@ import { routeKey, type ApiRoute, type GuardedRoute } from './route';
  * The `/api/*` route table (api.ts, routes/) against the real gateway on a real socket: every
  * route declares what it needs, no two share a method and path, what the table says agrees with
  * what the gateway enforces (the console header of csrf.ts; a viewer refused from every
- * supervisor's route, audited exactly where the route says).
+ * supervisor's route, every refusal written to the audit log).
  */
 
 const cleanups: Cleanups = [];
