@@ -12,7 +12,8 @@ export const SIZE_BUDGETS_KIB: Array<{ screen: RegExp; kib: number }> = [
   // 110 → 107: the top bar is a chunk of its own (a kiosk tablet never loads it).
   // 107 → 108 (issue 33, 14 and 10): landmarks and headings on every page, the menu's emergency
   // stop switch (107.1).
-  { screen: /^shell$/, kib: 108 },
+  // 108 → 109: the kernel's one scheduler (issue 34: one timer per moment instead of one per session and component; 0.8 KiB), 108.7.
+  { screen: /^shell$/, kib: 109 },
   { screen: /^family: /, kib: 28 },
   // 163 → 141, the same two changes, and the access rules and gateway hints left to the server.
   // 141 → 144 (issue 33): every machine page now carries the one job-control row (Pause, Resume,
@@ -20,25 +21,29 @@ export const SIZE_BUDGETS_KIB: Array<{ screen: RegExp; kib: number }> = [
   // a page without them showed wrongly; g2core's page weighed 143.0.
   // 144 → 145 (issue 33, 10 and 15): every stop's question, the temperature history (144.4).
   // 145 → 146 (issue 33, 6): one job record and one job formatter on every view (145.4).
-  { screen: /^machine page: /, kib: 146 },
+  // 146 → 147: the same scheduler (146.7).
+  { screen: /^machine page: /, kib: 147 },
   // A kiosk tablet's first screen (issue 16's ≤ 120 KiB target): its machine from the console
   // server's reading, before the family's code (src/app/kiosk/KioskPage.tsx).
   // 116 → 118 (issue 33): its job control row, disabled "Connecting…", is on it from the first
   // paint (item 15, 116.2), and the emergency stop's per-console setting shared with the top bar's
   // switch and the families' own stops (item 10, src/fleet/estop-confirm.ts).
-  { screen: /^kiosk page: first screen$/, kib: 118 },
+  // 118 → 119: the same scheduler (118.6).
+  { screen: /^kiosk page: first screen$/, kib: 119 },
   // Then live, with the family's code and its controls.
   // 139 → 141 (issue 33): the same job-control row and shown state (g2core's kiosk: 140.2).
   // 141 → 142: the same (141.3).
   // 142 → 143 (issue 33, 6): the same (142.1).
-  { screen: /^kiosk page, live: /, kib: 143 },
+  // 143 → 144: the same scheduler (143.5).
+  { screen: /^kiosk page, live: /, kib: 144 },
   // The fleet page paints from the console server's readings before any family's code
   // (src/app/first-screen.ts): the shell and the fleet page.
   // 117 → 118 (issue 33, 10): the top bar menu's emergency-stop switch (measured 117.8).
   // 118 → 119: the shell's growth above (118.1).
   // 119 → 120 (issue 34): the five families' manifests in the shell (their labels, job commands
   // and job control rows' words, before any family's code; measured 119.3, from 118.8).
-  { screen: /^fleet page: first screen$/, kib: 120 },
+  // 120 → 121: the same scheduler (120.3).
+  { screen: /^fleet page: first screen$/, kib: 121 },
   // Then the families' code, at idle, for live tiles: 225 → 206 with the two changes above.
   // 206 → 185: Prunt's config-form engine loads when its editor opens, TouchCut's and Duet's tile
   // thumbnails and login forms when they show.

@@ -31,7 +31,7 @@ const SIM_MARKERS: Array<{ file: string; text: string }> = [
   { file: 'src/controllers/g2core/sim/jobs.ts', text: 'demo-pocket.nc' },
   { file: 'src/controllers/prunt/sim/sim.ts', text: 'Server restarts (power blip)' },
   { file: 'src/controllers/touchcut/sim/simulator.ts', text: 'Restart TouchCut (not ready for 8 s)' },
-  { file: 'src/controllers/xtool/sim/simulator.ts', text: 'Load a demo job (as the vendor app would)' },
+  { file: 'src/controllers/xtool/sim/machine.ts', text: 'Load a demo job (as the vendor app would)' },
 ];
 
 function allFiles(dir: string): string[] {
