@@ -63,6 +63,27 @@ describe('Scheduler.after', () => {
     expect(clock.live).toBe(0);
   });
 
+  it('a one-shot cancelled by another of its moment, as that one runs, does not run', () => {
+    const { clock, s } = rig();
+    const fired: string[] = [];
+    let cancelB: () => void = () => undefined;
+    s.after(1000, () => {
+      fired.push('a');
+      cancelB();
+    });
+    cancelB = s.after(1000, () => fired.push('b'));
+    const stopTick = s.every(500, () => {
+      fired.push('tick');
+      stopOther();
+    });
+    const stopOther = s.every(500, () => fired.push('other'));
+    clock.advance(500);
+    expect(fired).toEqual(['tick']);
+    clock.advance(500);
+    expect(fired.sort()).toEqual(['a', 'tick', 'tick']);
+    stopTick();
+  });
+
   it('cancel: the last one-shot of a moment cancelled clears its timer, and nothing fires', () => {
     const { clock, s } = rig();
     const fired: string[] = [];

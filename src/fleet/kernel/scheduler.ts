@@ -117,10 +117,15 @@ export class Deadline<H = unknown> {
   }
 }
 
-/** Runs every callback; an error of one neither stops the others nor is lost (thrown after them). */
-function runAll(fns: Iterable<() => void>): void {
+/**
+ * Runs every callback of `fns` as it is now, skipping one cancelled by an earlier one meanwhile
+ * (nothing runs after its cancel); an error of one neither stops the others nor is lost (thrown
+ * after them).
+ */
+function runAll(fns: Set<() => void>): void {
   let failed: { error: unknown } | null = null;
-  for (const fn of fns) {
+  for (const fn of [...fns]) {
+    if (!fns.has(fn)) continue;
     try {
       fn();
     } catch (error) {
@@ -150,7 +155,7 @@ export class Scheduler {
       const moment: { fns: Set<() => void>; handle: unknown } = { fns: new Set(), handle: null };
       moment.handle = this.host.setTimeout(() => {
         if (this.moments.get(at) === moment) this.moments.delete(at);
-        runAll([...moment.fns]);
+        runAll(moment.fns);
       }, at - this.now());
       this.moments.set(at, moment);
       m = moment;
@@ -173,7 +178,7 @@ export class Scheduler {
     let t = this.ticks.get(periodMs);
     if (!t) {
       const tick: { fns: Set<() => void>; handle: unknown } = { fns: new Set(), handle: null };
-      tick.handle = this.host.setInterval(() => runAll([...tick.fns]), periodMs);
+      tick.handle = this.host.setInterval(() => runAll(tick.fns), periodMs);
       this.ticks.set(periodMs, tick);
       t = tick;
     }
