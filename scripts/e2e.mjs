@@ -1,28 +1,59 @@
 #!/usr/bin/env node
-// The browser tests: the tablet and the desktop projects run side by side, each in its own
-// Playwright process with its own production server (its own port, data folder and simulated
-// fleet) and its own results folder, so neither sees the other's machines. Most of a browser test
-// is waiting on the machines and the page, so the two share a 2-core machine well (measured:
-// docs/performance.md, "the test run"). Arguments go to both (a spec file, --grep); with
-// --project=<name> only that one runs. SHOPDECK_E2E_SERIAL=1 runs the projects one after another.
-// At the end each project's failed and flaky tests are said again, together, so a log that keeps
+// The browser tests: each project (tablet, desktop) in SHOPDECK_E2E_SHARDS Playwright processes
+// (2 unless said), all side by side, each with its own production server (its own port, data
+// folder and simulated fleet) and results folder, so none sees another's machines. The spec files
+// are dealt to a project's processes by their measured seconds (tests/e2e/weights.json, from a CI
+// run's log; a file not in it counts as 20 s), longest first, each to the least loaded process.
+// Much of a browser test is waiting on the machines and the page, so more processes than cores
+// fill the gaps (measured: docs/performance.md, "the test run"). Arguments (a spec file, --grep)
+// go to one process per project; with --project=<name> only that one runs.
+// SHOPDECK_E2E_SERIAL=1 runs the processes one after another.
+// At the end each process's failed and flaky tests are said again, together, so a log that keeps
 // only its last lines still names them (CI keeps the tail).
 import { spawn } from 'node:child_process';
+import { readdirSync, readFileSync } from 'node:fs';
 import { StringDecoder } from 'node:string_decoder';
 
 const args = process.argv.slice(2);
 const chosen = args.filter((a) => a.startsWith('--project')).length > 0;
 const base = Number(process.env.SHOPDECK_E2E_PORT ?? 4180);
-const projects = chosen ? [null] : ['tablet', 'desktop'];
+const shards = args.length ? 1 : Math.max(1, Number(process.env.SHOPDECK_E2E_SHARDS) || 2);
+
+/** The spec files dealt to `n` processes by their weights for `project`, heaviest first. */
+function deal(project, n) {
+  const weights = JSON.parse(readFileSync('tests/e2e/weights.json', 'utf8'))[project] ?? {};
+  const files = readdirSync('tests/e2e')
+    .filter((f) => f.endsWith('.spec.ts'))
+    .map((f) => ({ f, w: weights[f] ?? 20 }))
+    .sort((a, b) => b.w - a.w || a.f.localeCompare(b.f));
+  const bins = Array.from({ length: n }, () => ({ w: 0, files: [] }));
+  for (const { f, w } of files) {
+    const bin = bins.reduce((least, b) => (b.w < least.w ? b : least));
+    bin.w += w;
+    bin.files.push(`tests/e2e/${f.replaceAll(".", "\\.")}$`);
+  }
+  return bins.map((b) => b.files);
+}
+
+/** Each process: its name, its Playwright arguments. */
+const runs = chosen
+  ? [{ name: 'chosen', extra: [] }]
+  : ['tablet', 'desktop'].flatMap((project) =>
+      shards === 1
+        ? [{ name: project, extra: [`--project=${project}`, `--output=test-results/${project}`] }]
+        : deal(project, shards).map((files, k) => ({
+            name: `${project} ${k + 1}/${shards}`,
+            extra: [`--project=${project}`, `--output=test-results/${project}-${k + 1}`, ...files],
+          })),
+    );
 
 /** Per project: the lines of Playwright's closing summary (failed, flaky) and every ✘ line. */
 const said = new Map();
 
-function run(project, i) {
+function run({ name, extra }, i) {
   const lines = [];
-  said.set(project ?? 'chosen', lines);
+  said.set(name, lines);
   return new Promise((resolve) => {
-    const extra = project ? [`--project=${project}`, `--output=test-results/${project}`] : [];
     const child = spawn(
       process.execPath,
       ['node_modules/@playwright/test/cli.js', 'test', ...extra, ...args],
@@ -62,13 +93,13 @@ function run(project, i) {
 
 const serial = process.env.SHOPDECK_E2E_SERIAL === '1';
 const codes = [];
-if (serial) for (const [i, p] of projects.entries()) codes.push(await run(p, i));
-else codes.push(...(await Promise.all(projects.map((p, i) => run(p, i)))));
+if (serial) for (const [i, r] of runs.entries()) codes.push(await run(r, i));
+else codes.push(...(await Promise.all(runs.map((r, i) => run(r, i)))));
 const failed = codes.some((c) => c !== 0);
 for (const [name, lines] of said)
   if (lines.length) console.log(`\n── ${name}: failed or flaky\n${lines.join('\n')}`);
-if (projects.length > 1)
+if (runs.length > 1)
   console.log(
-    `browser tests: ${projects.map((p, i) => `${p} ${codes[i] === 0 ? 'passed' : 'FAILED'}`).join(', ')}`,
+    `browser tests: ${runs.map((r, i) => `${r.name} ${codes[i] === 0 ? 'passed' : 'FAILED'}`).join(', ')}`,
   );
 process.exit(failed ? 1 : 0);

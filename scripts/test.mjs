@@ -63,7 +63,8 @@ function runStep(step, hold) {
     )
     .then((ok) => {
       const seconds = (Date.now() - started) / 1000;
-      if (hold) console.log(`\n━━ ${step} (${ok ? 'passed' : 'FAILED'}, ${seconds.toFixed(0)} s)\n${out.join('')}`);
+      if (hold)
+        console.log(`\n━━ ${step} (${ok ? 'passed' : 'FAILED'}, ${seconds.toFixed(0)} s)\n${out.join('')}`);
       done.push({ step, ok, seconds });
       return ok;
     });
@@ -89,7 +90,10 @@ for (const step of ['unit+integration', 'faults', 'bundle', 'e2e'].filter(wanted
 
 const minutes = (s) => `${(s / 60).toFixed(1)} min`;
 console.log('\n━━ npm test');
-for (const { step, ok, seconds } of done) console.log(`  ${ok ? 'passed' : 'FAILED'}  ${step.padEnd(18)} ${minutes(seconds)}`);
+for (const { step, ok, seconds } of done)
+  console.log(`  ${ok ? 'passed' : 'FAILED'}  ${step.padEnd(18)} ${minutes(seconds)}`);
 const failed = done.filter((d) => !d.ok);
-console.log(`  ${failed.length ? `${failed.length} FAILED` : 'all passed'} in ${minutes((Date.now() - t0) / 1000)}`);
+console.log(
+  `  ${failed.length ? `${failed.length} FAILED` : 'all passed'} in ${minutes((Date.now() - t0) / 1000)}`,
+);
 process.exit(failed.length ? 1 : 0);
