@@ -1,13 +1,14 @@
 #!/usr/bin/env node
-// The browser tests: each project (tablet, desktop) in SHOPDECK_E2E_SHARDS Playwright processes
-// (2 unless said), all side by side, each with its own production server (its own port, data
-// folder and simulated fleet) and results folder, so none sees another's machines. The spec files
-// are dealt to a project's processes by their measured seconds (tests/e2e/weights.json, from a CI
-// run's log; a file not in it counts as 20 s), longest first, each to the least loaded process.
-// Much of a browser test is waiting on the machines and the page, so more processes than cores
-// fill the gaps (measured: docs/performance.md, "the test run"). Arguments (a spec file, --grep)
-// go to one process per project; with --project=<name> only that one runs.
-// SHOPDECK_E2E_SERIAL=1 runs the processes one after another.
+// The browser tests, in SHOPDECK_E2E_LANES lanes side by side (2 unless said). The (project, spec
+// file) pairs, tablet and desktop, are dealt to the lanes by their measured seconds
+// (tests/e2e/weights.json, from a CI run's log; a file not in it counts as 20 s), longest first,
+// each to the least loaded lane; a lane runs one Playwright process per project it holds, one after
+// the other, each with its own production server (its own port, data folder and simulated fleet)
+// and results folder, so none sees another's machines. Two lanes because one lane of browser tests
+// keeps two cores about two-thirds busy and two nearly all (docs/performance.md, "the test run"):
+// a third adds load, not speed. Arguments (a spec file, --grep) run one process per project, the
+// two side by side; with --project=<name> only that one runs.
+// SHOPDECK_E2E_SERIAL=1 runs everything one process after another.
 // At the end each process's failed and flaky tests are said again, together, so a log that keeps
 // only its last lines still names them (CI keeps the tail).
 import { spawn } from 'node:child_process';
@@ -15,37 +16,54 @@ import { readdirSync, readFileSync } from 'node:fs';
 import { StringDecoder } from 'node:string_decoder';
 
 const args = process.argv.slice(2);
-const chosen = args.filter((a) => a.startsWith('--project')).length > 0;
+const chosen = args.some((a) => a.startsWith('--project'));
 const base = Number(process.env.SHOPDECK_E2E_PORT ?? 4180);
-const shards = args.length ? 1 : Math.max(1, Number(process.env.SHOPDECK_E2E_SHARDS) || 2);
+const PROJECTS = ['tablet', 'desktop'];
 
-/** The spec files dealt to `n` processes by their weights for `project`, heaviest first. */
-function deal(project, n) {
-  const weights = JSON.parse(readFileSync('tests/e2e/weights.json', 'utf8'))[project] ?? {};
-  const files = readdirSync('tests/e2e')
-    .filter((f) => f.endsWith('.spec.ts'))
-    .map((f) => ({ f, w: weights[f] ?? 20 }))
-    .sort((a, b) => b.w - a.w || a.f.localeCompare(b.f));
-  const bins = Array.from({ length: n }, () => ({ w: 0, files: [] }));
-  for (const { f, w } of files) {
+/** A Playwright process: its name and arguments. */
+/** @typedef {{ name: string, extra: string[] }} Run */
+
+/** The lanes: each a list of runs, one after another. */
+function lanes(n) {
+  const weights = JSON.parse(readFileSync('tests/e2e/weights.json', 'utf8'));
+  const files = readdirSync('tests/e2e').filter((f) => f.endsWith('.spec.ts'));
+  // Not measured in a project but in the other: its tests there are all skipped.
+  const known = (f) => PROJECTS.some((p) => weights[p]?.[f] !== undefined);
+  const items = PROJECTS.flatMap((project) =>
+    files.map((f) => ({ project, f, w: weights[project]?.[f] ?? (known(f) ? 0 : 20) })),
+  ).sort((a, b) => b.w - a.w || a.f.localeCompare(b.f) || a.project.localeCompare(b.project));
+  const bins = Array.from({ length: n }, () => ({ w: 0, items: [] }));
+  for (const item of items) {
     const bin = bins.reduce((least, b) => (b.w < least.w ? b : least));
-    bin.w += w;
-    bin.files.push(`tests/e2e/${f.replaceAll(".", "\\.")}$`);
+    bin.w += item.w;
+    bin.items.push(item);
   }
-  return bins.map((b) => b.files);
+  return bins.map((bin, k) =>
+    PROJECTS.map((project) => ({
+      name: `${project} (lane ${k + 1})`,
+      extra: [
+        `--project=${project}`,
+        `--output=test-results/${project}-${k + 1}`,
+        // A regular expression each (Playwright's filter): the file's name exactly.
+        ...bin.items
+          .filter((i) => i.project === project)
+          .map((i) => `tests/e2e/${i.f.replaceAll('.', '\\.')}$`),
+      ],
+    })).filter((r) => r.extra.length > 2),
+  );
 }
 
-/** Each process: its name, its Playwright arguments. */
-const runs = chosen
-  ? [{ name: 'chosen', extra: [] }]
-  : ['tablet', 'desktop'].flatMap((project) =>
-      shards === 1
-        ? [{ name: project, extra: [`--project=${project}`, `--output=test-results/${project}`] }]
-        : deal(project, shards).map((files, k) => ({
-            name: `${project} ${k + 1}/${shards}`,
-            extra: [`--project=${project}`, `--output=test-results/${project}-${k + 1}`, ...files],
-          })),
-    );
+/** @type {Run[][]} */
+const plan = chosen
+  ? [[{ name: 'chosen', extra: [] }]]
+  : args.length
+    ? PROJECTS.map((p) => [{ name: p, extra: [`--project=${p}`, `--output=test-results/${p}`] }])
+    : lanes(Math.max(1, Number(process.env.SHOPDECK_E2E_LANES) || 2));
+
+if (process.env.SHOPDECK_E2E_PLAN === '1') {
+  for (const [k, list] of plan.entries()) console.log(`lane ${k + 1}:`, JSON.stringify(list, null, 1));
+  process.exit(0);
+}
 
 /** Per project: the lines of Playwright's closing summary (failed, flaky) and every ✘ line. */
 const said = new Map();
@@ -92,9 +110,15 @@ function run({ name, extra }, i) {
 }
 
 const serial = process.env.SHOPDECK_E2E_SERIAL === '1';
-const codes = [];
-if (serial) for (const [i, r] of runs.entries()) codes.push(await run(r, i));
-else codes.push(...(await Promise.all(runs.map((r, i) => run(r, i)))));
+const runs = plan.flat();
+/** @type {number[]} */
+const codes = new Array(runs.length).fill(0);
+const index = (r) => runs.indexOf(r);
+async function lane(list) {
+  for (const r of list) codes[index(r)] = await run(r, index(r));
+}
+if (serial) for (const list of plan) await lane(list);
+else await Promise.all(plan.map(lane));
 const failed = codes.some((c) => c !== 0);
 for (const [name, lines] of said)
   if (lines.length) console.log(`\n── ${name}: failed or flaky\n${lines.join('\n')}`);
