@@ -61,6 +61,10 @@ export default defineConfig({
         test: {
           name: 'unit',
           include: ['src/**/*.test.{ts,tsx}', 'tests/unit/**/*.test.{ts,tsx}'],
+          // One module graph per worker, not per file: these files hold no socket, server or
+          // process, and each cleans up its fakes. Measured here (2 cores, 154 files, loaded):
+          // 319 s and 299 CPU-s isolated, 232 s and 194 CPU-s not, every test passing in both.
+          isolate: false,
           exclude: [...SRC_ON_SOCKETS, ...PACKAGING],
         },
       },

@@ -550,5 +550,6 @@ describe('HTTPS', () => {
     await expect(startServer({ env: { SHOPDECK_TLS_CERT: certFile } })).rejects.toThrow(
       /set both SHOPDECK_TLS_CERT and SHOPDECK_TLS_KEY/,
     );
-  });
+    // Three server processes one after another (about 4 s each here, more on a loaded machine).
+  }, 60_000);
 });
