@@ -10,8 +10,9 @@ import { DEMO_MACHINES, resetSimulators } from './simulators';
  * element ends beyond the right edge (an element inside a container that scrolls or clips
  * sideways, such as a table in its overflow-x:auto wrapper, is that container's business: only
  * the container is measured). The top navigation (the menu button; its pages inside the open
- * menu) and the job's stop controls are on the screen, whole. A screenshot of each page goes to
- * /tmp/a14-<page>.png.
+ * menu) and the job's stop controls are on the screen, whole. With SHOPDECK_E2E_SHOTS=1 a
+ * screenshot of each page goes to /tmp/a14-<page>.png (to look at; about 80 full-page shots a
+ * project, so not in every run).
  * Run: SHOPDECK_E2E_PORT=4196 npx playwright test tests/e2e/i33-a14-fit.spec.ts
  */
 
@@ -81,7 +82,8 @@ async function onScreen(page: Page, selector: string): Promise<boolean> {
 
 async function fits(page: Page, info: TestInfo, name: string, opts: { nav?: boolean; stop?: boolean } = {}) {
   await page.waitForTimeout(500);
-  await page.screenshot({ path: `/tmp/a14-${name}-${info.project.name}.png`, fullPage: true });
+  if (process.env.SHOPDECK_E2E_SHOTS)
+    await page.screenshot({ path: `/tmp/a14-${name}-${info.project.name}.png`, fullPage: true });
   expect.soft(await overflows(page), `${name}: nothing beyond the right edge at 390 px`).toEqual([]);
   if (opts.nav)
     expect
