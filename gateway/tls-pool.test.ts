@@ -11,9 +11,11 @@ import type { FamilyDescriptor } from '../src/fleet/contract';
 import {
   consoleFetch,
   gatewayFor,
+  openWs,
   selfSignedCert,
   startGateway,
   stubEntry,
+  startStub,
   tempDir,
   testFamily,
   type Running,
@@ -102,6 +104,8 @@ async function controller(cert: Cert, port = 0): Promise<Controller> {
     sock.on('close', () => c.open--);
   });
   server.on('connection', () => c.connects++);
+  // Its own idle timeout (and the `Keep-Alive: timeout=` it announces) far above the gateway's.
+  server.keepAliveTimeout = 120_000;
   await new Promise<void>((r) => server.listen(port, '127.0.0.1', () => r()));
   c.port = (server.address() as AddressInfo).port;
   c.url = `https://127.0.0.1:${c.port}`;
@@ -268,8 +272,8 @@ describe('pinned TLS connections are kept alive per machine', () => {
     expect((await read(gw)).status).toBe(200);
     expect(c.handshakes).toBe(1);
     expect((await consoleFetch(`${gw.url}/api/tls/plasma`, { method: 'DELETE' })).status).toBe(200);
-    // The kept connection is closed at once, not left for its idle timeout.
-    await until(() => c.open === 0, 'the kept connection to close');
+    // The kept connection is closed at once, not left for its idle timeout (4 s).
+    await until(() => c.open === 0, 'the kept connection to close', 3_000);
     expect((await read(gw)).status).toBe(200);
     expect(c.handshakes).toBe(2);
     expect(c.seen.map((s) => s.connection)).toEqual([1, 1, 2]);
@@ -455,11 +459,11 @@ describe('PinnedPools', () => {
     });
     cleanups.push(() => pools.close());
     const m = stubEntry('plasma', c.url);
-    const get = (): Promise<number> =>
+    const get = (from = pools): Promise<number> =>
       new Promise((resolve, reject) => {
         const url = new URL(c.url);
         const req = https.request(
-          { hostname: url.hostname, port: url.port, path: '/status', agent: pools.agentFor(m, url) },
+          { hostname: url.hostname, port: url.port, path: '/status', agent: from.agentFor(m, url) },
           (res) => {
             res.resume();
             res.on('end', () => resolve(res.statusCode ?? 0));
@@ -480,5 +484,49 @@ describe('PinnedPools', () => {
     expect(pools.agentFor(m, new URL(c.url))).toBe(pool);
     new PinStore(t.dir).forget('plasma');
     expect(pools.agentFor(m, new URL(c.url))).not.toBe(pool);
+    // Closed (the gateway stopped): a request still sent is answered, its connection not kept
+    // (closed at once: the idle timeout here is far longer than the wait).
+    await until(() => c.open === 0, 'the idle connection to close');
+    const late = new PinnedPools({
+      store: new PinStore(t.dir),
+      timeoutMs: 5_000,
+      onTrust: () => undefined,
+      idleMs: 600_000,
+    });
+    late.close();
+    const before = c.handshakes;
+    expect(await get(late)).toBe(200);
+    expect(c.handshakes).toBe(before + 1);
+    await until(() => c.open === 0, 'the connection of a closed pool to close');
+  });
+});
+
+describe('a certificate trusted on first use is audited, whatever connection trusted it', () => {
+  it('over HTTP (a read on the pool, a command on its own connection) and over a wss: socket', async () => {
+    const stub = await startStub({ key: real.key, cert: real.cert });
+    cleanups.push(stub.close);
+    const gw = await setup([
+      stubEntry('plasma', stub.url),
+      stubEntry('cmd', stub.url),
+      stubEntry('live', null, { wsUrl: new URL(stub.wsUrl) }),
+    ]);
+    const trusts = (): Array<{ machine?: string; detail?: string }> =>
+      gw.gw.audit.all().filter((e) => e.type === 'tls-trust');
+    expect((await consoleFetch(`${gw.url}/machines/plasma/status`)).status).toBe(200);
+    const cmd = await consoleFetch(`${gw.url}/machines/cmd/code`, {
+      method: 'POST',
+      body: 'M25',
+      headers: { 'X-Shopdeck-Command': 'test.pause' },
+    });
+    expect(cmd.status).toBe(200);
+    const w = await openWs(`ws://${gw.host}/machines/live/live`);
+    expect(w.first).toBe('hello');
+    await w.close();
+    expect(
+      trusts()
+        .map((e) => e.machine)
+        .sort(),
+    ).toEqual(['cmd', 'live', 'plasma']);
+    for (const e of trusts()) expect(e.detail).toContain(real.fingerprint);
   });
 });

@@ -113,6 +113,7 @@ class PinnedAgent extends https.Agent {
 /** The gateway's pools of pinned TLS connections, by machine id. */
 export class PinnedPools {
   private readonly pools = new Map<string, PinnedAgent>();
+  private closed = false;
 
   constructor(private readonly deps: PoolDeps) {}
 
@@ -138,7 +139,9 @@ export class PinnedPools {
       return old;
     old?.retire();
     const agent = new PinnedAgent(m, url.origin, url, this.deps);
-    this.pools.set(m.id, agent);
+    // The gateway stopped: a request still sent gets a connection, never kept.
+    if (this.closed) agent.retire();
+    else this.pools.set(m.id, agent);
     return agent;
   }
 
@@ -150,7 +153,11 @@ export class PinnedPools {
 
   /** Gateway stop: every connection closed, busy or idle. */
   close(): void {
-    for (const a of this.pools.values()) a.destroy();
+    this.closed = true;
+    for (const a of this.pools.values()) {
+      a.retire();
+      a.destroy();
+    }
     this.pools.clear();
   }
 }
