@@ -1,4 +1,5 @@
 import { PinStore } from './tls-pin';
+import { PinnedPools, trustEntry } from './tls-pool';
 import { StreamHubs } from './stream-hubs';
 import { secretPatterns } from './redact';
 import http, { type IncomingMessage } from 'node:http';
@@ -106,8 +107,8 @@ export function createContext(opts: GatewayOptions): GatewayContext {
   const openSockets = new Set<WebSocket>();
   const pending = new Set<http.ClientRequest>();
   const httpAgent = new http.Agent({ keepAlive: false });
-  // No https agent: an https:/wss: controller is reached only over a pinned TLS socket
-  // (tls-pin.ts connectPinned), whose certificate is checked before a byte is sent.
+  // An https:/wss: controller is reached only over pinned TLS sockets (tls-pin.ts connectPinned,
+  // kept for reads by tls-pool.ts), whose certificate is checked before a byte is sent.
   const upstream = new UpstreamHttp({
     sharingOf: (m) => hintsOf(m).sharing,
     timeoutMs,
@@ -167,6 +168,8 @@ export function createContext(opts: GatewayOptions): GatewayContext {
   }
 
   const { record, beginCommand, onRecord, refusals } = createAuditWriter(audit, log, now);
+  // Kept-alive pinned TLS connections for reads, one small pool per machine (tls-pool.ts).
+  const tlsPools = new PinnedPools({ store: pins, timeoutMs, onTrust: (m, r) => record(trustEntry(m, r)) });
   const scrub = (text: string): string => redact(text, allSecrets);
   const identity = createIdentity({ opts, users, sessions, record, liveSockets });
   const { who, sessionBody, cookie, mayUseMachine, needLogin, revalidateSockets } = identity;
@@ -297,6 +300,7 @@ export function createContext(opts: GatewayOptions): GatewayContext {
     refusals,
     patternsFor,
     pins,
+    tlsPools,
     heldSessions,
     learnSecret,
   };

@@ -5,6 +5,7 @@ import type { HeldSocket } from './held-session';
 import { unreachableReason } from './log';
 import { redact, type MachineEntry } from './machines';
 import { CertificateChanged, connectPinned, PinFileError } from './tls-pin';
+import { trustEntry } from './tls-pool';
 import { DEFAULT_BRIDGE_LIMITS } from './ws-bridge';
 
 export type OpenedSocket =
@@ -20,7 +21,7 @@ export type OpenedSocket =
 
 /** Opens a controller's WebSocket: for a bridged browser socket (proxy-ws.ts) or a shared stream. */
 export function createSocketOpener(ctx: GatewayContext) {
-  const { opts, timeoutMs, secretsOf, openSockets, state, pins, reachability } = ctx;
+  const { opts, timeoutMs, secretsOf, openSockets, state, pins, reachability, record } = ctx;
 
   /**
    * Opens the controller's WebSocket for `path?query` (the held session's key and the family's
@@ -58,7 +59,14 @@ export function createSocketOpener(ctx: GatewayContext) {
     if (target.startsWith('wss:')) {
       // The certificate is checked before the handshake (and any secret in it) is sent.
       try {
-        tlsSocket = await connectPinned({ machine: m, url: new URL(target), store: pins, timeoutMs });
+        tlsSocket = await connectPinned({
+          machine: m,
+          url: new URL(target),
+          store: pins,
+          timeoutMs,
+          // Trusted on first use by a socket: audited as over HTTP.
+          onTrust: (r) => record(trustEntry(m, r)),
+        });
       } catch (e) {
         const msg =
           e instanceof CertificateChanged || e instanceof PinFileError ? e.message : `cannot reach ${m.name}`;

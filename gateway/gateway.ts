@@ -295,6 +295,7 @@ export function createGateway(opts: GatewayOptions): Gateway {
     sims.clear();
     httpAgent.destroy();
     ctx.upstream.close();
+    ctx.tlsPools.close(); // kept pinned TLS connections (tls-pool.ts)
     // Queued audit entries are written and fsynced, the file closed; later ones are written
     // directly. A server awaits `audit.close()` (the same promise) before it exits.
     ctx.audit.close().catch((e: unknown) => {

@@ -12,6 +12,7 @@ import { unreachableReason } from './log';
 import { redact, type MachineEntry } from './machines';
 import { createRedactor, decoderFor, redactBytes } from './redact';
 import { CertificateChanged, connectPinned, PinFileError } from './tls-pin';
+import { sendAgain, trustEntry } from './tls-pool';
 
 /**
  * The last leg of `/machines/<id>/*` over HTTP (proxy-http.ts): an authorized request sent to the
@@ -58,6 +59,8 @@ export function createForwarder(ctx: GatewayContext) {
     record,
     patternsFor,
     pins,
+    tlsPools,
+    hintsOf,
     simulatorFor,
     log,
     reachability,
@@ -203,6 +206,8 @@ export function createForwarder(ctx: GatewayContext) {
     agent: http.Agent = httpAgent,
     /** A command's deadline and abort (null: a read). */
     watch: CommandWatch | null = null,
+    /** An `https:` read sent again after its kept connection was found closed: a new connection. */
+    fresh = false,
   ): Promise<void> {
     // Stopped before it left (the deadline passed, the browser left): never sent.
     if (watch?.stopped || res.destroyed) {
@@ -218,26 +223,26 @@ export function createForwarder(ctx: GatewayContext) {
     else if (req.headers['content-length']) headers['content-length'] = req.headers['content-length'];
     else if (req.headers['transfer-encoding']) headers['transfer-encoding'] = 'chunked';
     let tlsSocket: TLSSocket | null = null;
+    /**
+     * A read's kept pinned connections (tls-pool.ts) when the family keeps connections
+     * (`sharing.keepAlive`); a command, or any request otherwise, gets a connection of its own.
+     */
+    let pool: http.Agent | null = null;
     if (isHttps) {
       // The controller's certificate is checked (configured fingerprint or trust on first use)
-      // before one byte of the request, and so before any secret, is written (tls-pin.ts).
+      // before one byte of the request, and so before any secret, is written (tls-pin.ts); a
+      // kept connection only while the pin it was checked against is still the one in force.
       try {
-        tlsSocket = await connectPinned({
-          machine: m,
-          url: target,
-          store: pins,
-          // A command's deadline ends the handshake too (its own 504 comes first: a little later).
-          timeoutMs: Math.min(timeoutMs, (watch?.remaining() ?? Number.POSITIVE_INFINITY) + 100),
-          onTrust: (r) =>
-            record({
-              type: 'tls-trust',
-              result: 'ok',
-              user: 'gateway',
-              source: 'gateway',
-              machine: m.id,
-              detail: `trusted the certificate ${r.fingerprint} on first use`,
-            }),
-        });
+        if (!watch && !fresh && hintsOf(m).sharing?.keepAlive === true) pool = tlsPools.agentFor(m, target);
+        else
+          tlsSocket = await connectPinned({
+            machine: m,
+            url: target,
+            store: pins,
+            // A command's deadline ends the handshake too (its own 504 comes first: a little later).
+            timeoutMs: Math.min(timeoutMs, (watch?.remaining() ?? Number.POSITIVE_INFINITY) + 100),
+            onTrust: (r) => record(trustEntry(m, r)),
+          });
       } catch (e) {
         // Answered already: the deadline passed, or the browser left, during the handshake.
         if (watch?.stopped) return;
@@ -251,7 +256,7 @@ export function createForwarder(ctx: GatewayContext) {
       }
       // The browser left, or the deadline passed, while the certificate was checked: not a byte
       // of the request is written.
-      if (res.destroyed || watch?.stopped) {
+      if (tlsSocket && (res.destroyed || watch?.stopped)) {
         tlsSocket.destroy();
         return;
       }
@@ -266,7 +271,7 @@ export function createForwarder(ctx: GatewayContext) {
         method,
         path: basePath + pathAndQuery,
         headers: { ...headers, host: target.host },
-        ...(socket ? { createConnection: () => socket } : { agent }),
+        ...(socket ? { createConnection: () => socket } : { agent: pool ?? agent }),
       });
     } catch (e) {
       // Node refused to build it (a path or header it cannot write): not a byte was sent. Answered
@@ -298,6 +303,7 @@ export function createForwarder(ctx: GatewayContext) {
     }
     let timedOut = false;
     let finished = false;
+    let answered = false;
     /** The browser went away and the gateway ended the request: not the controller's doing. */
     let abandoned = false;
     const finish = (r: { status?: number; error?: string }): void => {
@@ -325,6 +331,30 @@ export function createForwarder(ctx: GatewayContext) {
         finish({ error: 'aborted' });
         return;
       }
+      // A read whose kept connection the controller had closed: once more, on a new connection.
+      if (pool && !answered && !timedOut && !abandoned && !res.destroyed && sendAgain(upstream, e, method)) {
+        finished = true;
+        pending.delete(upstream);
+        unwatch();
+        res.off('close', onBrowserGone);
+        void forward(
+          req,
+          res,
+          m,
+          target,
+          method,
+          path,
+          pathAndQuery,
+          headers,
+          body,
+          done,
+          held,
+          agent,
+          null,
+          true,
+        );
+        return;
+      }
       const words = upstreamWords(m, e, timedOut);
       if (!abandoned && !ctx.state.closed) upstreamFailed(m, e, timedOut);
       finish({ error: unconfirmed() ? `not confirmed: ${words}` : words });
@@ -338,6 +368,7 @@ export function createForwarder(ctx: GatewayContext) {
     };
     res.on('close', onBrowserGone);
     upstream.on('response', (up) => {
+      answered = true;
       reachability.up(m.id);
       const status = up.statusCode ?? 502;
       // Held session (held-session.ts): a read whose key expired is sent once more with a new key.

@@ -17,6 +17,7 @@ import type { RefusalAggregator } from './refusals';
 import type { SettingsStore } from './settings';
 import type { StreamHubs } from './stream-hubs';
 import type { PinStore } from './tls-pin';
+import type { PinnedPools } from './tls-pool';
 import type { UpstreamHttp, UpstreamStats } from './upstream-http';
 import type { UserDirectory } from './users';
 import type { Webhook } from './webhook';
@@ -156,6 +157,8 @@ export interface LinksService {
   readonly streams: StreamHubs;
   /** Pinned TLS certificates of the controllers (tls-pin.ts). */
   readonly pins: PinStore;
+  /** Kept-alive pinned TLS connections for reads, per machine (tls-pool.ts). */
+  readonly tlsPools: PinnedPools;
   /** Controller sessions the gateway holds, by machine id (held-session.ts). */
   readonly heldSessions: Map<string, HeldSessionHandle>;
 }

@@ -35,45 +35,11 @@ import { normalizeFingerprint, type MachineEntry } from './machines';
  * A supervisor gets a controller's fingerprint from its screen or with
  * `openssl s_client -connect <host>:443 </dev/null | openssl x509 -noout -fingerprint -sha256`.
  *
- * ── Wiring (for the gateway) ────────────────────────────────────────────────────────────────
- *
- * One `PinStore` per gateway: `new PinStore(opts.dataDir)`.
- *
- * HTTP (`proxy-forward.ts`, `forward()` when `target.protocol === 'https:'`): connect first, then
- * hand the verified socket to `http.request` (plain `http.request`: the socket already speaks
- * TLS; no `agent`, no `protocol`; one socket per request, the request sends `Connection: close`):
- *
- *     const socket = await connectPinned({ machine: m, url: target, store, timeoutMs, onTrust });
- *     const upstream = http.request({
- *       host: target.hostname, port: target.port || 443, method, path, headers,
- *       createConnection: () => socket,
- *     });
- *
- *   A rejection (`CertificateChanged`, `PinFileError`, a network error) becomes the 502 with
- *   its message and an audited error, as "cannot reach the controller" does now.
- *
- * WebSocket (`controller-socket.ts`, when the upstream URL is `wss:`): same, with the `ws` client:
- *
- *     const socket = await connectPinned({ machine: m, url: new URL(target), store, timeoutMs, onTrust });
- *     const upstream = new WebSocket(target, offered, { headers, createConnection: () => socket, … });
- *
- *   (`rejectUnauthorized: false` is then meaningless and can go; the pin replaces it.)
- *
- * `onTrust(record)` is called once when a certificate is trusted on first use: audit it, e.g.
- * `{ type: 'tls-trusted', result: 'ok', user: 'gateway', machine: m.id, detail: record.fingerprint }`
- * (a new `AuditType`).
- *
- * API for the supervisor page:
- *
- * - `GET /api/tls` (supervisors; everyone in open mode, like `/api/audit`) →
- *   `{ machines: listPins(machinesOfTheUser, store) }`. A `PinFileError` → 500 `{ error: e.message }`
- *   so the supervisor sees the broken file. Addresses are not included (the browser never learns
- *   them).
- * - `DELETE /api/tls/<id>` (supervisor, same-origin rule as other non-GET requests): 404 when the
- *   id is unknown or `pinInfo()` is null; 409 when `info.mode === 'configured'` (forgetting
- *   changes nothing: the machines file decides; say so); else `const old = store.forget(id)`,
- *   audit `{ type: 'tls-forget', result: 'ok', user, machine: id, detail: old ? old.fingerprint : 'no pin' }`
- *   and answer 200 `{ forgotten: old }`. The next connection trusts the certificate it is shown.
+ * Used by `proxy-forward.ts` and `upstream-request.ts` (a command's or a lone request's own
+ * socket, `createConnection: () => socket`), `tls-pool.ts` (reads' kept connections, made here)
+ * and `controller-socket.ts` (`wss:`). A rejection (`CertificateChanged`, `PinFileError`, a
+ * network error) is a 502 with its message; `onTrust` is audited (`tls-trust`). `GET /api/tls`
+ * and `DELETE /api/tls/<id>` (supervisors, routes/tls.ts) list and forget pins (gateway/README.md).
  */
 
 export { normalizeFingerprint };

@@ -425,7 +425,8 @@ export class MachineLink {
 
   private readAgent(sharing: SharingHints): http.Agent {
     if (!sharing.keepAlive) return this.deps.httpAgent;
-    // `https:` controllers ignore it: `forward` gives each request its own pinned TLS socket.
+    // `https:` controllers ignore it: their reads use the machine's pool of kept pinned TLS
+    // connections (tls-pool.ts) under the same `keepAlive`.
     this.agent ??= new http.Agent({
       keepAlive: true,
       keepAliveMsecs: 1000,

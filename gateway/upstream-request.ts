@@ -1,17 +1,20 @@
 import http from 'node:http';
+import https from 'node:https';
+import type { TLSSocket } from 'node:tls';
 import type { UpstreamAnswer } from '../src/fleet/contract';
 import { unreachableReason } from './log';
 import { redact, type MachineEntry } from './machines';
 import type { AuditService, ConfigService, LinksService, MachinesService, SecretsService } from './services';
 import { connectPinned } from './tls-pin';
+import { sendAgain, trustEntry } from './tls-pool';
 
 /** Answers of the gateway's own requests are read up to this. */
 const MAX_ANSWER = 1024 * 1024;
 
 /** What `upstreamRequest` uses of the gateway. */
 export type UpstreamRequestHost = Pick<ConfigService, 'timeoutMs' | 'state'> &
-  Pick<MachinesService, 'simulatorFor'> &
-  Pick<LinksService, 'pins' | 'httpAgent' | 'pending' | 'reachability'> &
+  Pick<MachinesService, 'simulatorFor' | 'hintsOf'> &
+  Pick<LinksService, 'pins' | 'tlsPools' | 'httpAgent' | 'pending' | 'reachability'> &
   Pick<AuditService, 'record'> &
   Pick<SecretsService, 'secretsOf'>;
 
@@ -23,9 +26,10 @@ function flatHeaders(h: http.IncomingHttpHeaders): Record<string, string> {
 }
 
 /**
- * One request of the gateway's own to a machine: its controller (through the same agent and
- * TLS pinning as forwarded requests) or its in-process simulator. `detached`: not on the shared
- * agent nor in `pending` (requests sent while the gateway closes).
+ * One request of the gateway's own to a machine: its controller (through the same agent and TLS
+ * pinning as forwarded requests: an `https:` read on the machine's kept pinned connections when
+ * its family keeps connections, tls-pool.ts) or its in-process simulator. `detached`: not on the
+ * shared agent nor the pool, not in `pending` (requests sent while the gateway closes).
  */
 export async function upstreamRequest(
   ctx: UpstreamRequestHost,
@@ -75,25 +79,46 @@ export async function upstreamRequest(
   const target = m.url;
   if (!target) throw new Error(`machine ${m.id} has no url`);
   const isHttps = target.protocol === 'https:';
-  const socket = isHttps
-    ? await connectPinned({
-        machine: m,
-        url: target,
-        store: ctx.pins,
-        timeoutMs: ctx.timeoutMs,
-        onTrust: (r) =>
-          ctx.record({
-            type: 'tls-trust',
-            result: 'ok',
-            user: 'gateway',
-            source: 'gateway',
-            machine: m.id,
-            detail: `trusted the certificate ${r.fingerprint} on first use`,
-          }),
-      })
-    : null;
+  const keep =
+    (method === 'GET' || method === 'HEAD') && !opts.detached && ctx.hintsOf(m).sharing?.keepAlive === true;
+  /** `fresh`: a read sent again after its kept connection was found closed (a new connection). */
+  const send = async (fresh: boolean): Promise<UpstreamAnswer> => {
+    const pool = isHttps && keep && !fresh ? ctx.tlsPools.agentFor(m, target) : null;
+    const socket =
+      isHttps && !pool
+        ? await connectPinned({
+            machine: m,
+            url: target,
+            store: ctx.pins,
+            timeoutMs: ctx.timeoutMs,
+            onTrust: (r) => ctx.record(trustEntry(m, r)),
+          })
+        : null;
+    return exchange(ctx, m, target, method, pathAndQuery, headers, { ...opts, body }, socket, pool, () =>
+      send(true),
+    );
+  };
+  return send(false);
+}
+
+/** The request itself, on `socket` (a pinned one of its own), `pool` (kept pinned ones) or an agent. */
+function exchange(
+  ctx: UpstreamRequestHost,
+  m: MachineEntry,
+  target: URL,
+  method: string,
+  pathAndQuery: string,
+  headers: Record<string, string>,
+  opts: { detached?: boolean; body?: string | Buffer; onData?: (chunk: Uint8Array) => boolean },
+  socket: TLSSocket | null,
+  pool: http.Agent | null,
+  again: () => Promise<UpstreamAnswer>,
+): Promise<UpstreamAnswer> {
+  const { body, onData } = opts;
+  const isHttps = target.protocol === 'https:';
   return new Promise<UpstreamAnswer>((resolve, reject) => {
-    const req = http.request({
+    const req = (isHttps ? https : http).request({
+      protocol: target.protocol,
       hostname: target.hostname.replace(/^\[|\]$/g, ''),
       port: target.port || (isHttps ? 443 : 80),
       method,
@@ -103,7 +128,9 @@ export async function upstreamRequest(
         host: target.host,
         ...(body !== undefined ? { 'content-length': String(Buffer.byteLength(body)) } : {}),
       },
-      ...(socket ? { createConnection: () => socket } : { agent: opts.detached ? false : ctx.httpAgent }),
+      ...(socket
+        ? { createConnection: () => socket }
+        : { agent: pool ?? (opts.detached ? false : ctx.httpAgent) }),
     });
     if (!opts.detached) ctx.pending.add(req);
     const settle = (): void => {
@@ -112,13 +139,20 @@ export async function upstreamRequest(
     req.setTimeout(ctx.timeoutMs, () =>
       req.destroy(new Error(`the controller did not answer within ${ctx.timeoutMs} ms`)),
     );
+    let answered = false;
     req.on('error', (e: Error & { code?: string }) => {
       settle();
+      // A read whose kept connection the controller had closed: once more, on a new connection.
+      if (pool && !answered && sendAgain(req, e, method)) {
+        again().then(resolve, reject);
+        return;
+      }
       const reason = opts.detached || ctx.state.closed ? null : unreachableReason(e, false);
       if (reason) ctx.reachability.down(m.id, reason, redact(e.message, ctx.secretsOf.get(m.id) ?? []));
       reject(e);
     });
     req.on('response', (res) => {
+      answered = true;
       ctx.reachability.up(m.id);
       const chunks: Buffer[] = [];
       let size = 0;

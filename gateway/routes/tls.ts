@@ -7,11 +7,11 @@ import type { ApiRoute } from './route';
 
 export type TlsServices = Pick<ConfigService, 'config'> &
   Pick<MachinesService, 'byId'> &
-  Pick<LinksService, 'pins'> &
+  Pick<LinksService, 'pins' | 'tlsPools'> &
   Pick<AuditService, 'record'> &
   Pick<UsersService, 'mayUseMachine'>;
 
-export function tlsRoutes({ config, byId, pins, record, mayUseMachine }: TlsServices): ApiRoute[] {
+export function tlsRoutes({ config, byId, pins, tlsPools, record, mayUseMachine }: TlsServices): ApiRoute[] {
   return [
     {
       method: 'GET',
@@ -58,6 +58,8 @@ export function tlsRoutes({ config, byId, pins, record, mayUseMachine }: TlsServ
           return;
         }
         const gone = pins.forget(m.id);
+        // Connections checked against the forgotten pin are not used again (tls-pool.ts).
+        tlsPools.drop(m.id);
         record({
           type: 'tls-forget',
           result: 'ok',

@@ -32,7 +32,7 @@ describe('TouchCut sharing: the declaration', () => {
   it('is what the declaration gives the gateway, beside the key and the held login', () => {
     expect(touchcutDeclaration.gateway?.sharing).toBe(touchcutSharing);
     expect(touchcutDeclaration.gateway?.injectSecrets).toBeDefined();
-    expect(touchcutSharing.keepAlive).toBe(false);
+    expect(touchcutSharing.keepAlive).toBe(true);
     expect(touchcutSharing.maxConcurrentReads).toBe(3);
     expect(touchcutSharing.streams).toBeUndefined();
   });

@@ -119,10 +119,11 @@ export const touchcutWatch: WatchDecl = {
 export const touchcutSharing: SharingHints = {
   shareRead: touchcutShareRead,
   /**
-   * TouchCut's REST server answers HTTP/1.0 (every answer in the manual) and does not say it
-   * keeps the connection: one connection per request, as the manual's own examples (curl).
+   * Reads ask to keep the connection (its pinned TLS one: no handshake per read, tls-pool.ts; at
+   * most 2 idle, a Windows PC has sockets to spare). The manual's answers are HTTP/1.0: one that
+   * does not say `Connection: keep-alive` is closed after it, a new connection per request.
    */
-  keepAlive: false,
+  keepAlive: true,
   /**
    * A Windows PC whose first job is the cutting: status, monitor and screenshot in flight at once
    * (the three live feeds), and no more.
