@@ -1,4 +1,4 @@
-import type { IncomingMessage, ServerResponse } from 'node:http';
+import { METHODS, type IncomingMessage, type ServerResponse } from 'node:http';
 import Fastify, { type FastifyReply, type FastifyRequest } from 'fastify';
 import {
   answerUnrouted,
@@ -24,8 +24,9 @@ import {
  *
  * Paths match as the table says (`resolveRoute` on `new URL`'s pathname): Fastify routes that
  * pathname with each `%` escaped (find-my-way decodes percent escapes once, the table never did);
- * a pattern path is a wildcard route on its fixed prefix whose pattern is checked in its hook.
- * Fastify reads no body (POST, PUT and DELETE are declared bodyless): a route reads its own when
+ * a pattern path is a wildcard route on its fixed prefix, answered where the table says so (its
+ * hook asks `resolveRoute`); a fixed path the table would answer otherwise is refused at start.
+ * Fastify reads no body (every method is declared bodyless): a route reads its own when
  * it needs it, up to its limit, as before; one that reads none leaves it to Node.
  */
 
@@ -40,10 +41,14 @@ interface Pending {
 export function fixedPrefix(path: RegExp): string | null {
   // Anchored, case-sensitive, no alternation: the pattern's paths all start with its prefix.
   if (path.flags.includes('i') || path.source.includes('|')) return null;
-  const m = /^\^((?:\\\/|\\\.|[a-z0-9-])+)([?*+{]?)/i.exec(path.source);
-  if (!m?.[1] || m[2]) return null;
-  const prefix = m[1].replace(/\\(.)/g, '$1');
-  return prefix.endsWith('/') ? prefix : null;
+  const m = /^\^((?:\\[/.-]|[a-z0-9-])+)([?*+{]?)/i.exec(path.source);
+  if (!m?.[1]) return null;
+  // The literal characters; the last one is optional when a quantifier follows it.
+  const chars = m[1].match(/\\.|./g) ?? [];
+  if (m[2]) chars.pop();
+  const literal = chars.map((c) => c.replace(/^\\/, '')).join('');
+  const cut = literal.lastIndexOf('/');
+  return cut > 0 ? literal.slice(0, cut + 1) : null;
 }
 
 /** The Fastify URL of a declared path: the path itself, or a wildcard on a pattern's prefix. */
@@ -62,6 +67,9 @@ export function routingPath(pathname: string): string {
   return pathname.replaceAll('%', '%25');
 }
 
+/** The methods Fastify reads a body of (fastify.js `kSupportedHTTPMethods.bodywith`). */
+const BODY_METHODS = ['DELETE', 'OPTIONS', 'PATCH', 'PUT', 'POST', 'QUERY'];
+
 export function fastifyApi(routes: readonly ApiRoute[], guard: Guard) {
   const pending = new WeakMap<IncomingMessage, Pending>();
   const app = Fastify({
@@ -75,8 +83,12 @@ export function fastifyApi(routes: readonly ApiRoute[], guard: Guard) {
     // A path find-my-way cannot decode (none after `routingPath`) answers as the table says.
     frameworkErrors: (err, request, reply) => unrouted(request, reply),
   });
-  // Fastify parses no body: each route reads its own, lazily, up to its `bodyLimit`.
-  for (const m of ['POST', 'PUT', 'DELETE']) app.addHttpMethod(m, { hasBody: false, overrideExisting: true });
+  // Fastify parses no body (no method has one for it, no parser reads one): each route reads its
+  // own, lazily, up to its `bodyLimit`; one it does not read is left to Node as before.
+  for (const m of BODY_METHODS.filter((x) => METHODS.includes(x)))
+    app.addHttpMethod(m, { hasBody: false, overrideExisting: true });
+  app.removeAllContentTypeParsers();
+  app.addContentTypeParser('*', (request, payload, done) => done(null));
 
   const state = (request: FastifyRequest): Pending => {
     const p = pending.get(request.raw);
@@ -118,23 +130,19 @@ export function fastifyApi(routes: readonly ApiRoute[], guard: Guard) {
   app.setNotFoundHandler(unrouted);
 
   const keys = new Map<string, ApiRoute>();
-  for (const [i, route] of routes.entries()) {
+  for (const route of routes) {
     const url = fastifyUrl(route);
     const key = `${route.method} ${url}`;
     const twin = keys.get(key);
     if (twin) throw new Error(`${routeKey(route)} and ${routeKey(twin)} would be one Fastify route (${key})`);
     keys.set(key, route);
-    // A path an earlier pattern of its method takes: the table answers it with that pattern.
-    const shadow = routes
-      .slice(0, i)
-      .find(
-        (r) =>
-          r.method === route.method &&
-          typeof route.path === 'string' &&
-          r.path instanceof RegExp &&
-          r.path.test(route.path),
-      );
-    if (shadow) throw new Error(`${routeKey(route)} is taken by ${routeKey(shadow)} before it`);
+    // Fastify answers a fixed path with its route: the table must too (no earlier pattern takes
+    // it, nor answers it 405).
+    if (typeof route.path === 'string') {
+      const found = resolveRoute(routes, route.method, route.path);
+      if (found.kind !== 'route' || found.route !== route)
+        throw new Error(`${routeKey(route)} is answered by an earlier route of the table`);
+    }
     app.route({
       method: route.method,
       url,
@@ -142,14 +150,15 @@ export function fastifyApi(routes: readonly ApiRoute[], guard: Guard) {
       onRequest: async (request, reply) => {
         const p = state(request);
         const req = request.raw;
-        const params: Record<string, string> = {};
+        let params: Record<string, string> = {};
         if (route.path instanceof RegExp) {
-          const m = route.path.exec(p.url.pathname);
-          if (!m) {
+          // A pattern's wildcard: the route answers where the table says it does, else the table.
+          const found = resolveRoute(routes, route.method, p.url.pathname);
+          if (found.kind !== 'route' || found.route !== route) {
             await unrouted(request, reply);
             return;
           }
-          for (const [k, v] of Object.entries(m.groups ?? {})) params[k] = v ?? '';
+          params = found.params;
         }
         try {
           const call = routeCall(req, route, p.url, params, request.routeOptions.bodyLimit);
@@ -168,7 +177,8 @@ export function fastifyApi(routes: readonly ApiRoute[], guard: Guard) {
         void reply.hijack();
         const p = state(request);
         try {
-          if (p.call) await runRoute(route, request.raw, reply.raw, p.call);
+          if (!p.call) throw new Error(`${routeKey(route)}: no call from its hook`);
+          await runRoute(route, request.raw, reply.raw, p.call);
           p.settle();
         } catch (e) {
           p.settle(e);
@@ -176,7 +186,10 @@ export function fastifyApi(routes: readonly ApiRoute[], guard: Guard) {
       },
     });
   }
-  const ready = app.ready();
+  const ready = new Promise<void>((resolve, reject) => {
+    app.ready((err) => (err ? reject(err) : resolve()));
+  });
+  ready.catch(() => undefined); // awaited (and thrown) by each request
 
   /**
    * Answers one `/api/*` request (`url`: its URL as the gateway parsed it); settles when the route

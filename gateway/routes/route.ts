@@ -5,8 +5,9 @@ import { clientAddress, readJson, sendJson } from '../http-util';
 
 /**
  * The `/api/*` surface as declared routes (issue 34 §2): each route says its method, path, the
- * role it needs, whether it changes state, its body limit and whether it writes the audit log;
- * `dispatch` enforces the role once for every route that declares one. The host and cross-site
+ * role it needs, whether it changes state, its body limit and whether it writes the audit log.
+ * Fastify answers them (fastify-api.ts: its routing matches as `resolveRoute` does) and enforces
+ * the role once for every route that declares one (`guardRoute`). The host and cross-site
  * checks (csrf.ts) run before, in gateway.ts: every method outside GET/HEAD/OPTIONS needs the
  * console header there, which is what `changesState` says (route-table.test.ts holds them equal).
  */
