@@ -6,7 +6,8 @@ import { auditRoutes } from './routes/audit';
 import { familyRoutes } from './routes/families';
 import { historyRoutes } from './routes/history';
 import { machinesRoutes, type Watched } from './routes/machines';
-import { dispatcher, type ApiRoute } from './routes/route';
+import { fastifyApi } from './routes/fastify-api';
+import type { ApiRoute } from './routes/route';
 import { sessionRoutes } from './routes/session';
 import { settingsRoutes } from './routes/settings';
 import { tlsRoutes } from './routes/tls';
@@ -15,8 +16,8 @@ import { TemperatureStore } from './temperatures';
 import type { Webhook } from './webhook';
 
 /**
- * `/api/*`: the table of declared routes (routes/, one module per area) and the dispatcher that
- * answers them (routes/route.ts): match, method, the role a route declares, then its handler.
+ * `/api/*`: the table of declared routes (routes/, one module per area), answered by Fastify
+ * (routes/fastify-api.ts): match, method, the role a route declares (a hook), then its handler.
  * Cross-site requests and unknown hosts were refused before this (gateway.ts, csrf.ts).
  */
 
@@ -37,7 +38,7 @@ export interface ApiStores {
   temperatures?: TemperatureStore;
 }
 
-/** The `/api/*` routes in the order the dispatcher tries them (the gateway's own, then the families'). */
+/** The `/api/*` routes in the order the table tries them (the gateway's own, then the families'). */
 export function apiRoutes(ctx: GatewayContext, stores: ApiStores): ApiRoute[] {
   const { alarms, settings, webhook, history } = stores;
   return [
@@ -59,5 +60,5 @@ export function apiRoutes(ctx: GatewayContext, stores: ApiStores): ApiRoute[] {
 
 export function createApi(ctx: GatewayContext, stores: ApiStores = createAlarmStores(ctx)) {
   const routes = apiRoutes(ctx, stores);
-  return Object.assign(dispatcher(routes, ctx), { routes: routes as readonly ApiRoute[] });
+  return Object.assign(fastifyApi(routes, ctx), { routes: routes as readonly ApiRoute[] });
 }
