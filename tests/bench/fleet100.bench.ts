@@ -16,13 +16,22 @@
  *
  *     BENCH_FLEET_SECONDS=20 BENCH_FLEET_HEAP_MINUTES=1 npx tsx tests/bench/fleet100.bench.ts
  *
+ * - BENCH_FLEET_SNAPSHOTS=<dir> (opt-in): a heap snapshot (forced GC first) at the start of the
+ *   heap run and one at its end, written to <dir>/start.heapsnapshot and end.heapsnapshot, and
+ *   their comparison (per constructor: count and self size in each, the difference, largest
+ *   growth first; the retainer paths of the top growers' new objects) to <dir>/compare.txt
+ *   (heap-snapshot.ts; it also compares two files by hand). The samples of a run with snapshots
+ *   are not comparable with one without. BENCH_DIST=<dir> serves an unminified build
+ *   (`npx vite build --minify false --outDir <dir>`) to see the page's own class names.
+ *
  * Needs a built dist/ (built here when missing).
  */
-import { mkdtempSync, rmSync, writeFileSync } from 'node:fs';
+import { mkdirSync, mkdtempSync, readFileSync, rmSync, writeFileSync } from 'node:fs';
 import os from 'node:os';
 import path from 'node:path';
 import { type Browser, type CDPSession, type Page } from '@playwright/test';
 import { MACHINE_KINDS } from '../../src/controllers';
+import { comparisonText, parseSnapshot, takeSnapshot } from './heap-snapshot';
 import { launchChromium, stopOnSignal, ensureDist, sleep, startServer, type Server } from './harness';
 import { median, report, round } from './util';
 
@@ -30,6 +39,7 @@ const PER_FAMILY = Number(process.env.BENCH_FLEET_PER_FAMILY ?? 20);
 const SECONDS = Number(process.env.BENCH_FLEET_SECONDS ?? 60);
 const HEAP_MINUTES = Number(process.env.BENCH_FLEET_HEAP_MINUTES ?? 3);
 const SETTLE_MS = 5000;
+const SNAPSHOTS = process.env.BENCH_FLEET_SNAPSHOTS;
 
 const log = (msg: string): void => {
   process.stderr.write(`fleet100.bench: ${msg}\n`);
@@ -181,6 +191,11 @@ async function main(): Promise<void> {
       style_recalcs_per_s: round(d('RecalcStyleCount') / span, 1),
       meets: misses.length ? `no: ${misses.join(', ')}` : 'yes',
     });
+    if (SNAPSHOTS) {
+      mkdirSync(SNAPSHOTS, { recursive: true });
+      await takeSnapshot(cdp, path.join(SNAPSHOTS, 'start.heapsnapshot'));
+      log(`snapshot: ${path.join(SNAPSHOTS, 'start.heapsnapshot')}`);
+    }
     // Heap: one sample a minute after a forced GC (the first was taken before the window).
     const heapEnd = Date.now() + HEAP_MINUTES * 60_000;
     let next = Date.now() + 60_000;
@@ -188,6 +203,21 @@ async function main(): Promise<void> {
       await sleep(Math.max(0, Math.min(next, heapEnd) - Date.now()));
       heap.push(await heapAfterGc(cdp));
       next += 60_000;
+    }
+    if (SNAPSHOTS) {
+      const [a, b] = ['start', 'end'].map((n) => path.join(SNAPSHOTS, `${n}.heapsnapshot`)) as [
+        string,
+        string,
+      ];
+      await takeSnapshot(cdp, b);
+      const text = comparisonText(
+        parseSnapshot(readFileSync(a, 'utf8')),
+        parseSnapshot(readFileSync(b, 'utf8')),
+      );
+      writeFileSync(path.join(SNAPSHOTS, 'compare.txt'), text);
+      log(
+        `snapshots compared: ${path.join(SNAPSHOTS, 'compare.txt')}\n${text.split('\n').slice(0, 25).join('\n')}`,
+      );
     }
     const growth = (heap.at(-1) ?? 0) - (heap[0] ?? 0);
     // Stretched to 15 minutes when the run was shorter (linear: a leak grows with time).

@@ -128,7 +128,13 @@ export class ModelIngest {
     for (const id of [...this.alarmSince.keys()]) if (!live.has(id)) this.alarmSince.delete(id);
     this.h.tracker.ok(snap);
     const patch: Partial<DuetState> = { model: m, needsPassword: false };
-    if (now - this.lastHistoryAt >= HISTORY_EVERY_MS) {
+    // The chart's history only while a page shows the machine's details: a fleet page of 20 Duets
+    // would otherwise fill 15 minutes of points per heater it never draws (the heap's slow rise,
+    // docs/performance.md). An opened chart starts with the server's last minutes instead.
+    if (!this.h.ctx.detail()) {
+      if (Object.keys(this.h.store.getState().history).length) patch.history = {};
+      this.lastHistoryAt = 0;
+    } else if (now - this.lastHistoryAt >= HISTORY_EVERY_MS) {
       this.lastHistoryAt = now;
       patch.history = withHistoryPoint(this.h.store.getState().history, m, now);
     }

@@ -27,7 +27,10 @@ export interface UploadState {
 
 export interface DuetState {
   model: ObjectModel | null;
-  /** Temperature history, one series per heater index: [ms, °C]. */
+  /**
+   * Temperature history, one series per heater index: [ms, °C]. Kept only while a page shows the
+   * machine's details (ingest.ts); empty on a fleet page.
+   */
   history: Record<number, Array<readonly [number, number]>>;
   /** Codes typed into the console, newest last. */
   codeHistory: string[];

@@ -141,7 +141,10 @@ export class PruntLive {
     });
     for (const id of [...this.alarmSince.keys()])
       if (!alarms.some((a) => a.id === id)) this.alarmSince.delete(id);
-    this.history.push(now, d.series);
+    // The chart's samples only while a page shows the machine's details (a fleet page of 20
+    // Prunts would fill 10 minutes of samples it never draws: docs/performance.md, the heap).
+    if (this.ctx.detail()) this.history.push(now, d.series);
+    else if (this.history.t.length) this.history.clear();
     this.tracker.ok({
       activity,
       activityLabel: label,

@@ -83,6 +83,34 @@ describe('PruntSession against the simulator (module API)', () => {
     expect(session.store.getState().update?.result).toEqual({ Available: false, URL: '' });
   });
 
+  it('keeps the chart’s samples only while a page shows the machine’s details (a fleet page’s heap)', async () => {
+    const id = `prunt-${++seq}`;
+    const sim = new PruntSimulator({ id, name: 'Test printer', api: 'module' });
+    server.use(...simulatorHandlers(id, sim));
+    cleanups.push(() => sim.dispose());
+    const detail = { shown: false };
+    const ctx = createContext(
+      { id, name: 'Test printer', kind: 'prunt', simulated: true },
+      { visibility: alwaysVisible, detail: () => detail.shown },
+    );
+    const session = new PruntSession(ctx, { drafts: memoryDraftStorage() });
+    cleanups.unshift(() => session.stop());
+    session.start();
+    await until(() => ctx.snapshot.getState().link === 'online');
+    let ticks = 0;
+    const unsub = session.store.subscribe((s, p) => void (s.statusAt !== p.statusAt && ticks++));
+    await advance(30_000);
+    unsub();
+    expect(ticks).toBeGreaterThanOrEqual(20);
+    expect(session.history.t).toHaveLength(0);
+    detail.shown = true;
+    await advance(5000);
+    expect(session.history.t.length).toBeGreaterThanOrEqual(3);
+    detail.shown = false;
+    await advance(2000);
+    expect(session.history.t).toHaveLength(0);
+  });
+
   it('throttles with the divisor: 1 per second for the fleet, the chosen rate on the machine page', async () => {
     const { sim, session } = setup();
     session.start();
