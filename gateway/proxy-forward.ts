@@ -333,26 +333,8 @@ export function createForwarder(ctx: GatewayContext) {
       }
       // A read whose kept connection the controller had closed: once more, on a new connection.
       if (pool && !answered && !timedOut && !abandoned && !res.destroyed && sendAgain(upstream, e, method)) {
-        finished = true;
-        pending.delete(upstream);
-        unwatch();
-        res.off('close', onBrowserGone);
-        void forward(
-          req,
-          res,
-          m,
-          target,
-          method,
-          path,
-          pathAndQuery,
-          headers,
-          body,
-          done,
-          held,
-          agent,
-          null,
-          true,
-        );
+        letGo();
+        resend(pathAndQuery, held, null, true);
         return;
       }
       const words = upstreamWords(m, e, timedOut);
@@ -367,33 +349,25 @@ export function createForwarder(ctx: GatewayContext) {
       upstream.destroy();
     };
     res.on('close', onBrowserGone);
+    /** This request is sent again by a forward of its own: this one lets go of it. */
+    const letGo = (): void => {
+      finished = true;
+      pending.delete(upstream);
+      unwatch();
+      res.off('close', onBrowserGone);
+    };
+    /** The same request forwarded again: a new key (`held` null), or a new connection (`fresh`). */
+    const resend = (pq: string, h: HeldHttp | null, w: CommandWatch | null, fresh: boolean): void =>
+      void forward(req, res, m, target, method, path, pq, headers, body, done, h, agent, w, fresh);
     upstream.on('response', (up) => {
       answered = true;
       reachability.up(m.id);
       const status = up.statusCode ?? 502;
       // Held session (held-session.ts): a read whose key expired is sent once more with a new key.
-      const again = (pq?: string): void =>
-        void forward(
-          req,
-          res,
-          m,
-          target,
-          method,
-          path,
-          pq ?? pathAndQuery,
-          headers,
-          body,
-          done,
-          null,
-          agent,
-          watch,
-        );
+      const again = (pq?: string): void => resend(pq ?? pathAndQuery, null, watch, false);
       if (held?.retry(status, again, { request: upstream, response: up })) {
         // Sent again with a new key (a forward of its own): this one lets go of the response.
-        finished = true;
-        pending.delete(upstream);
-        unwatch();
-        res.off('close', onBrowserGone);
+        letGo();
         return;
       }
       const given = forwardResponseHeaders(up.headers);
